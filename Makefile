@@ -1,0 +1,29 @@
+# Every target bootstraps .venv from nothing, so `make demo` / `make test` work on a fresh clone.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+export MPLBACKEND ?= Agg
+
+.PHONY: demo test bench bench-peers clean venv
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/finkensim run --out out/demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q tests --nbmake notebooks
+
+bench: $(STAMP)
+	$(BIN)/python -m benchmarks.run $(if $(QUICK),--quick,)
+
+clean:
+	rm -rf $(VENV) .numba_cache out .pytest_cache .hypothesis
