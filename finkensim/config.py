@@ -1,0 +1,408 @@
+"""Configuration: frozen dataclasses with defaults for everything, loaded from TOML.
+
+Every field carries metadata (unit, allowed range or choices, one line of doc). The same
+validator runs when a dataclass is built in Python and when a TOML file is loaded, so a
+wrong key, type or range is always a :class:`ConfigError` naming the key, the value and
+what is allowed. Unknown keys are errors with a "did you mean" suggestion.
+
+Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted
+by the models). ``profile = "seed"`` switches every model to the behaviour described in the
+original V-REP report (see ``DESIGN.md``); keys given explicitly still override the profile.
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class ConfigError(ValueError):
+    """A configuration value is wrong. The message names the key, the value and what is allowed."""
+
+
+def _f(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
+    """A dataclass field with validation metadata.
+
+    ``lo``/``hi`` bound numbers (inclusive unless ``*_open``); ``choices`` lists allowed strings;
+    ``length`` fixes the length of a tuple field (None = any length).
+    """
+    meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
+    if isinstance(default, (list, tuple)):
+        return field(default_factory=lambda d=tuple(default): d, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _describe_range(meta) -> str:
+    parts = []
+    if meta["choices"] is not None:
+        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+    if meta["lo"] is not None:
+        parts.append((">" if meta["lo_open"] else ">=") + f" {meta['lo']}")
+    if meta["hi"] is not None:
+        parts.append(("<" if meta["hi_open"] else "<=") + f" {meta['hi']}")
+    unit = f" {meta['unit']}" if meta["unit"] else ""
+    return " and ".join(parts) + unit if parts else "any value"
+
+
+def _check_number(key, value, meta, kind):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{key} = {value!r}: expected a {kind}, got {type(value).__name__}")
+    if kind == "integer" and not isinstance(value, int):
+        raise ConfigError(f"{key} = {value!r}: expected an integer, got {type(value).__name__}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{key} = {value!r}: expected a finite {kind}")
+    lo, hi = meta["lo"], meta["hi"]
+    bad_lo = lo is not None and (value <= lo if meta["lo_open"] else value < lo)
+    bad_hi = hi is not None and (value >= hi if meta["hi_open"] else value > hi)
+    if bad_lo or bad_hi:
+        raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}")
+    return float(value) if kind == "number" else int(value)
+
+
+def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
+    """Check one value against its declared type and metadata; return it in canonical form."""
+    t = ftype if isinstance(ftype, str) else getattr(ftype, "__name__", str(ftype))
+    if t == "float":
+        return _check_number(key, value, meta, "number")
+    if t == "int":
+        return _check_number(key, value, meta, "integer")
+    if t == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{key} = {value!r}: expected true or false, got {type(value).__name__}")
+        return value
+    if t == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{key} = {value!r}: expected a string, got {type(value).__name__}")
+        if meta["choices"] is not None and value not in meta["choices"]:
+            hint = difflib.get_close_matches(value, meta["choices"], n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+            raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{extra}")
+        return value
+    if t.startswith("tuple"):
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
+        if meta["length"] is not None and len(value) != meta["length"]:
+            raise ConfigError(f"{key} = {value!r}: expected a list of {meta['length']} numbers, got {len(value)}")
+        inner = "tuple[float, float]" in t or "tuple[tuple" in t
+        if inner:  # a list of 2-D points
+            pts = []
+            for i, p in enumerate(value):
+                if not isinstance(p, (list, tuple)) or len(p) != 2:
+                    raise ConfigError(f"{key}[{i}] = {p!r}: expected a point [x, y] in m")
+                pts.append(tuple(_check_number(f"{key}[{i}]", c, meta, "number") for c in p))
+            return tuple(pts)
+        return tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
+    raise TypeError(f"unsupported config field type {t} for {key}")  # a bug in this module, not user input
+
+
+class _Section:
+    """Mixin: validate every field on construction (also when built from Python)."""
+
+    _section = ""
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            key = f"{self._section}.{f.name}" if self._section else f.name
+            object.__setattr__(self, f.name, _coerce(key, getattr(self, f.name), f.type, f.metadata))
+        self._check()
+
+    def _check(self):
+        """Cross-field checks; override in sections that need them."""
+
+
+@dataclass(frozen=True)
+class ArenaConfig(_Section):
+    """The flight arena: a rectangle with its origin at one corner."""
+
+    _section = "arena"
+    width: float = _f(3.0, "m", 0.5, 1000.0, doc="x extent")
+    length: float = _f(4.0, "m", 0.5, 1000.0, doc="y extent")
+    altitude: float = _f(0.6, "m", 0.05, 5.0, doc="fixed flight height of every copter")
+
+
+@dataclass(frozen=True)
+class WallConfig(_Section):
+    """Curtain walls as hinged plates pulled toward passing copters (Bernoulli)."""
+
+    _section = "walls"
+    bending: bool = _f(True, doc="false = rigid walls (plates never move)")
+    n_segments: int = _f(16, "", 1, 1000, doc="hinged plates per wall")
+    threshold: float = _f(1.0, "m", 0.0, 10.0, lo_open=True, doc="copter distance below which the plate is pulled")
+    max_amplitude_deg: float = _f(30.0, "deg", 0.0, 80.0, doc="target angle scale; target = max_amplitude * f(x)")
+    pid_p: float = _f(1.0, "N m/rad", 0.0, 1e6)
+    pid_i: float = _f(2.0, "N m/(rad s)", 0.0, 1e6)
+    pid_d: float = _f(1.0, "N m s/rad", 0.0, 1e6)
+    joint_force: float = _f(15.0, "N m", 0.0, 1e6, doc="hinge motor torque limit")
+    friction: float = _f(3.0, "N m s/rad", 0.0, 1e6, doc="viscous hinge friction while the motor is off")
+    plate_mass: float = _f(0.3, "kg", 0.0, 1e4, lo_open=True, doc="light curtain strip; the report's 40 kg cannot reach 30 deg")
+    plate_length: float = _f(1.0, "m", 0.0, 10.0, lo_open=True, doc="hinge to lower edge")
+    plate_thickness: float = _f(0.05, "m", 0.0, 1.0)
+    plate_width_fraction: float = _f(0.9, "", 0.0, 1.0, lo_open=True, doc="plate width as a fraction of the segment pitch")
+    hinge_height: float = _f(1.0, "m", 0.0, 20.0, lo_open=True, doc="height of the horizontal hinge above the floor")
+    substeps: int = _f(10, "", 1, 1000, doc="hinge integration substeps per world step")
+
+    def _check(self):
+        if self.plate_length > self.hinge_height:
+            raise ConfigError(
+                f"walls.plate_length = {self.plate_length!r}: expected <= walls.hinge_height = {self.hinge_height!r} m "
+                "(the plate would reach below the floor)"
+            )
+
+
+@dataclass(frozen=True)
+class CopterConfig(_Section):
+    """Kinematic copters at fixed altitude."""
+
+    _section = "copters"
+    n: int = _f(6, "", 1, 100000, doc="copters per environment")
+    radius: float = _f(0.15, "m", 0.0, 2.0, lo_open=True, doc="body radius for contacts and sonar echoes")
+    max_speed: float = _f(1.0, "m/s", 0.0, 50.0, lo_open=True)
+    max_accel: float = _f(2.0, "m/s^2", 0.0, 1000.0, lo_open=True)
+    velocity_tau: float = _f(0.3, "s", 0.0, 100.0, doc="first-order lag of velocity toward the command (0 = none)")
+    max_yaw_rate_deg: float = _f(90.0, "deg/s", 0.0, 3600.0, lo_open=True)
+    yaw_tau: float = _f(0.2, "s", 0.0, 100.0, doc="first-order lag of yaw rate toward the command (0 = none)")
+    min_separation: float = _f(0.5, "m", 0.0, 100.0, doc="minimum centre distance when placing copters at start")
+
+
+@dataclass(frozen=True)
+class SimulationConfig(_Section):
+    _section = "simulation"
+    dt: float = _f(0.05, "s", 0.0, 1.0, lo_open=True, doc="world step")
+    duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
+    seed: int = _f(0, "", 0, 2**63 - 1)
+    n_envs: int = _f(1, "", 1, 10_000_000, doc="parallel environments (leading array axis)")
+
+
+@dataclass(frozen=True)
+class BehaviourConfig(_Section):
+    """Controller driving the copters in `finkensim run`."""
+
+    _section = "behaviour"
+    kind: str = _f("random_walk", choices=("random_walk", "hover"))
+    speed: float = _f(0.3, "m/s", 0.0, 50.0, doc="random walk: cruise speed")
+    redraw_steps: int = _f(20, "", 1, 10**9, doc="random walk: steps between new random headings")
+    wall_margin: float = _f(0.4, "m", 0.0, 100.0, doc="random walk: steer inward when closer than this to a wall")
+    yaw_rate_deg: float = _f(20.0, "deg/s", 0.0, 3600.0, doc="random walk: largest random yaw rate command")
+
+
+@dataclass(frozen=True)
+class SonarConfig(_Section):
+    """Ultrasonic sensors: four horizontal sonars plus the down-facing one (issue: sensor models)."""
+
+    _section = "sonar"
+    enabled: bool = _f(True)
+    yaw_deg: tuple[float, ...] = _f((0.0, 90.0, 180.0, -90.0), "deg", -360.0, 360.0, length=4,
+                                    doc="mounting yaw of front, left, back, right relative to the heading")
+    offset: float = _f(0.0, "m", 0.0, 1.0, doc="sonar distance from the copter centre (original scene: 0)")
+    min_range: float = _f(0.2, "m", 0.0, 10.0, doc="readings are clamped to [min_range, max_range]")
+    max_range: float = _f(3.0, "m", 0.0, 50.0, lo_open=True, doc="no echo within this distance reads max_range")
+    error: str = _f("rayleigh", choices=("rayleigh", "seed", "gaussian", "none"),
+                    doc="error model: Rayleigh term, the report's rule, Gaussian(sigma), or ideal")
+    sigma: float = _f(0.05, "m", 0.0, 10.0, doc="Rayleigh scale (rayleigh, seed) or standard deviation (gaussian)")
+    rayleigh_sign: float = _f(-1.0, "", -1.0, 1.0, doc="+1: reading = true + (R - s); -1: true - (R - s) (readings run short)")
+    crosstalk: str = _f("geometric", choices=("geometric", "constant", "off"))
+    crosstalk_probability: float = _f(0.68, "", 0.0, 1.0, doc="constant cross-talk: probability per reading (report: 0.68)")
+    cone_half_angle_deg: float = _f(45.0, "deg", 0.0, 90.0, lo_open=True, doc="sonar cone (original scene: 45 deg)")
+    schedule: str = _f("round_robin", choices=("simultaneous", "round_robin", "random_offset"),
+                       doc="firing schedule: which copters ping in the same slot")
+    n_slots: int = _f(4, "", 1, 1000, doc="time slots of the round-robin / random-offset schedules")
+    crosstalk_jitter: float = _f(0.02, "m", 0.0, 10.0, doc="std of the jitter added to a cross-talk reading")
+    beam: str = _f("ray", choices=("ray", "cone"), doc="ray: one ray; cone: nearest echo of several rays inside the cone")
+    beam_rays: int = _f(7, "", 1, 1001, doc="rays across the cone when beam = 'cone'")
+    down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
+
+
+@dataclass(frozen=True)
+class RangingConfig(_Section):
+    """Virtual ranging: radio distances between tags, with a Gaussian-mixture error."""
+
+    _section = "ranging"
+    enabled: bool = _f(True)
+    max_range: float = _f(2.5, "m", 0.0, 1000.0, lo_open=True, doc="beyond this, reads exactly max_range without error")
+    error: str = _f("mixture", choices=("mixture", "seed", "gaussian", "none"),
+                    doc="mixture: correct conditional GMM draw; seed: the script's weighted sum")
+    sigma: float = _f(0.1, "m", 0.0, 10.0, doc="standard deviation for error = 'gaussian'")
+    mixture_file: str = _f("", doc="JSON/NPZ mixture in metres; empty = Parlow's K=100 model shipped with finkensim")
+    seed_variance_factor: float = _f(10.0, "", 0.0, 1e6, lo_open=True, doc="seed mode: the script's variance fudge")
+    beacons: tuple[tuple[float, float], ...] = _f((), "m", -1e6, 1e6, doc="fixed ranging tags [[x, y], ...]")
+
+
+@dataclass(frozen=True)
+class ImuConfig(_Section):
+    """Body-frame 2-axis accelerometer and yaw-rate gyro with white noise and bias random walk."""
+
+    _section = "imu"
+    enabled: bool = _f(True)
+    acc_noise_density: float = _f(0.004, "m/s^2/sqrt(Hz)", 0.0, 100.0, doc="MPU-6000 class: 400 ug/sqrt(Hz)")
+    acc_bias_walk: float = _f(0.0005, "m/s^3/sqrt(Hz)", 0.0, 100.0, doc="accelerometer bias random walk density")
+    gyro_noise_density: float = _f(0.00009, "rad/s/sqrt(Hz)", 0.0, 100.0, doc="MPU-6000 class: 0.005 deg/s/sqrt(Hz)")
+    gyro_bias_walk: float = _f(0.00002, "rad/s^2/sqrt(Hz)", 0.0, 100.0, doc="gyro bias random walk density")
+
+
+SECTIONS: dict[str, type] = {
+    "arena": ArenaConfig,
+    "walls": WallConfig,
+    "copters": CopterConfig,
+    "simulation": SimulationConfig,
+    "behaviour": BehaviourConfig,
+    "sonar": SonarConfig,
+    "ranging": RangingConfig,
+    "imu": ImuConfig,
+}
+
+PROFILES: dict[str, dict[str, dict[str, Any]]] = {
+    "default": {},
+    # The original V-REP report, as described (DESIGN.md): 40 kg plates saturate the hinge motor.
+    "seed": {
+        "walls": {"plate_mass": 40.0},
+        "sonar": {"error": "seed", "crosstalk": "constant", "rayleigh_sign": 1.0},
+        "ranging": {"error": "seed"},
+    },
+}
+
+
+def register_section(name: str, cls: type, seed_overrides: Mapping[str, Any] | None = None) -> None:
+    """Add a config section (used by sensor and behaviour modules). ``seed_overrides`` are its seed-profile values."""
+    SECTIONS[name] = cls
+    if seed_overrides:
+        PROFILES["seed"].setdefault(name, {}).update(seed_overrides)
+
+
+class Config:
+    """The whole configuration: one frozen section object per name in :data:`SECTIONS`.
+
+    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`,
+    :func:`config_from_dict`, or ``Config()`` for all defaults; derive variants with
+    :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+    """
+
+    __slots__ = ("profile", "_sections")
+
+    def __init__(self, profile: str = "default", **sections):
+        if profile not in PROFILES:
+            hint = difflib.get_close_matches(str(profile), PROFILES, n=1)
+            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+            raise ConfigError(f"profile = {profile!r}: expected one of {', '.join(map(repr, PROFILES))}{extra}")
+        object.__setattr__(self, "profile", profile)
+        built = {}
+        for name, cls in SECTIONS.items():
+            sec = sections.pop(name, None)
+            built[name] = sec if sec is not None else cls(**PROFILES[profile].get(name, {}))
+        if sections:
+            raise ConfigError(f"unknown config sections: {', '.join(sections)}")
+        object.__setattr__(self, "_sections", built)
+
+    def __getattr__(self, name):
+        try:
+            return object.__getattribute__(self, "_sections")[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __setattr__(self, name, value):
+        raise dataclasses.FrozenInstanceError(f"Config is frozen; use cfg.replace({{'{name}...': ...}})")
+
+    def __eq__(self, other):
+        return isinstance(other, Config) and self.profile == other.profile and self._sections == other._sections
+
+    def __hash__(self):
+        return hash((self.profile, tuple(self._sections.items())))
+
+    def __repr__(self):
+        inner = ", ".join(f"{k}={v!r}" for k, v in self._sections.items())
+        return f"Config(profile={self.profile!r}, {inner})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain nested dict (TOML-shaped) of every value, including defaults."""
+        out: dict[str, Any] = {"profile": self.profile}
+        for name, sec in self._sections.items():
+            out[name] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sec).items()}
+        return out
+
+    def replace(self, updates: Mapping[str, Any]) -> "Config":
+        """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``."""
+        data = self.to_dict()
+        for dotted, value in updates.items():
+            section, _, key = dotted.partition(".")
+            if dotted == "profile":
+                data["profile"] = value
+                continue
+            if not key:
+                raise ConfigError(f"{dotted!r}: expected a dotted key 'section.key'")
+            _check_key(section, key)
+            data[section][key] = value
+        return config_from_dict(data, _explicit=True)
+
+
+def _check_key(section: str, key: str | None = None) -> None:
+    if section not in SECTIONS:
+        hint = difflib.get_close_matches(section, list(SECTIONS) + ["profile"], n=1)
+        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        raise ConfigError(f"unknown section [{section}]: expected one of {', '.join(SECTIONS)}{extra}")
+    if key is not None:
+        names = [f.name for f in dataclasses.fields(SECTIONS[section])]
+        if key not in names:
+            hint = difflib.get_close_matches(key, names, n=1)
+            extra = f" (did you mean {section}.{hint[0]}?)" if hint else ""
+            raise ConfigError(f"unknown key {section}.{key}{extra}; allowed: {', '.join(names)}")
+
+
+def config_from_dict(data: Mapping[str, Any], _explicit: bool = False) -> Config:
+    """Build a :class:`Config` from a TOML-shaped nested dict; missing keys take (profile) defaults."""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"config: expected a table of sections, got {type(data).__name__}")
+    profile = data.get("profile", "default")
+    if not isinstance(profile, str):
+        raise ConfigError(f"profile = {profile!r}: expected a string")
+    Config(profile)  # validates the profile name
+    sections = {}
+    for name, values in data.items():
+        if name == "profile":
+            continue
+        _check_key(name)
+        if not isinstance(values, Mapping):
+            raise ConfigError(f"[{name}] = {values!r}: expected a table of keys")
+        for key in values:
+            _check_key(name, key)
+        merged = {**PROFILES[profile].get(name, {}), **values} if not _explicit else dict(values)
+        sections[name] = SECTIONS[name](**merged)
+    return Config(profile, **sections)
+
+
+def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
+    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults)."""
+    if source is None:
+        return Config()
+    if isinstance(source, Mapping):
+        return config_from_dict(source)
+    text = None
+    path = Path(source) if not (isinstance(source, str) and "\n" in source) else None
+    if path is not None:
+        if not path.exists():
+            raise ConfigError(f"config file {str(path)!r} does not exist")
+        text = path.read_text()
+    else:
+        text = str(source)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        where = f" in {path}" if path else ""
+        raise ConfigError(f"invalid TOML{where}: {exc}") from None
+    return config_from_dict(data)
+
+
+def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:
+    """Rows (key, default, unit, allowed, doc) for documenting a section."""
+    rows = []
+    for f in dataclasses.fields(cfg_cls):
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        rows.append((f.name, default, f.metadata["unit"], _describe_range(f.metadata), f.metadata["doc"]))
+    return rows
