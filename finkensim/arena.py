@@ -1,0 +1,227 @@
+"""Arena rectangle and Bernoulli curtain walls.
+
+Frame: origin at a corner, x along the width (3 m), y along the length (4 m), yaw CCW from +x.
+
+Each of the four walls is a row of ``n_segments`` plates hanging from a horizontal hinge at
+``hinge_height``. A copter closer than ``threshold`` to a plate pulls it into the arena
+(Bernoulli: the rotor wash lowers the pressure on the arena side). The hinge angle θ (rad,
+positive = lower edge swings into the arena) follows a damped second-order model::
+
+    I θ'' = τ_motor − m g (L/2) sin θ,        I = m L² / 3     (rod hinged at one end)
+
+    copter within threshold:  τ_motor = clip(P e + I_gain ∫e − D θ', ±joint_force),
+                              e = θ_target − θ,  θ_target = max_amplitude · f(x),
+                              x = (threshold − d) / threshold,
+                              f(x) = 3.3 x³ − 7 x² + 4.8 x
+    otherwise:                τ_motor = −friction · θ'   (motor off; integral reset)
+
+d is the distance from the plate's rest line to the nearest copter body. The sensors see
+the plate surface at flight height, displaced into the arena by ``lever · sin θ`` with
+``lever = hinge_height − altitude``.
+
+Modelling choices (see README "Wall model"): the report's 40 kg plate cannot hang at 30°
+against a 15 N·m motor (it needs ≈ 98 N·m), so the default plate is a 0.3 kg curtain strip
+and ``profile = "seed"`` keeps 40 kg. The report's friction "3" is applied as viscous
+damping: as a Coulomb torque of 3 N·m it would hold a light plate at any angle forever.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from .config import ArenaConfig, WallConfig
+
+GRAVITY = 9.81  # m/s²
+
+
+def amplitude_law(x):
+    """f(x) = 3.3x³ − 7x² + 4.8x, the report's fit of plate amplitude vs closeness x ∈ [0, 1].
+
+    f(0) = 0, f(0.5) = 1.0625, f(1) = 1.1. Multiply by the maximum amplitude for the angle.
+    """
+    x = np.asarray(x, dtype=float)
+    return ((3.3 * x - 7.0) * x + 4.8) * x
+
+
+@njit(cache=True, inline="always")
+def _amplitude_law(x):
+    return ((3.3 * x - 7.0) * x + 4.8) * x
+
+
+@njit(cache=True, inline="always")
+def target_angle(d, threshold, max_amplitude):
+    """Target hinge angle (rad) for nearest-body distance d (m); 0 at or beyond the threshold."""
+    if d >= threshold:
+        return 0.0
+    x = (threshold - d) / threshold
+    return max_amplitude * _amplitude_law(x)
+
+
+def target_angles(d, threshold=1.0, max_amplitude=np.deg2rad(30.0)):
+    """Vectorised :func:`target_angle`: d (...) m → (...) rad."""
+    d = np.asarray(d, dtype=float)
+    x = np.clip((threshold - d) / threshold, 0.0, None)
+    return np.where(d >= threshold, 0.0, max_amplitude * amplitude_law(x))
+
+
+class HingeParams(NamedTuple):
+    """Scalars of the hinge model in SI units (angles in rad), as passed to the kernels."""
+
+    bending: bool
+    threshold: float
+    max_amplitude: float
+    p: float
+    i: float
+    d: float
+    joint_force: float
+    friction: float
+    inertia: float  # kg m²
+    gravity_torque: float  # m g L/2, N m (times sin θ)
+    substeps: int
+
+
+@njit(cache=True, inline="always")
+def hinge_substeps(theta, omega, integ, target, active, hp, dt):
+    """Advance one plate by one world step ``dt`` in ``hp.substeps`` semi-implicit Euler substeps.
+
+    Returns the new (theta, omega, integ). ``active`` is True while a copter is within threshold.
+    """
+    if not hp.bending:
+        return 0.0, 0.0, 0.0
+    h = dt / hp.substeps
+    if not active:
+        integ = 0.0
+    for _ in range(hp.substeps):
+        if active:
+            e = target - theta
+            integ += e * h
+            # anti-windup: the integral alone never asks for more than the motor can give
+            if hp.i > 0.0:
+                lim = hp.joint_force / hp.i
+                integ = min(lim, max(-lim, integ))
+            tau = hp.p * e + hp.i * integ - hp.d * omega
+            tau = min(hp.joint_force, max(-hp.joint_force, tau))
+            acc = (tau - hp.gravity_torque * np.sin(theta)) / hp.inertia
+            omega += acc * h
+        else:
+            # viscous friction integrated implicitly: stable for any friction / inertia ratio
+            omega = (omega - hp.gravity_torque * np.sin(theta) / hp.inertia * h) / (1.0 + hp.friction / hp.inertia * h)
+        theta += omega * h
+        if theta > 0.5 * np.pi:
+            theta = 0.5 * np.pi
+            omega = min(omega, 0.0)
+        elif theta < -0.5 * np.pi:
+            theta = -0.5 * np.pi
+            omega = max(omega, 0.0)
+    return theta, omega, integ
+
+
+@njit(cache=True, inline="always")
+def walls_step_env(theta, omega, integ, dist, hp, dt):
+    """One environment: update every plate (S,) in place from nearest-body distances ``dist`` (S,) m."""
+    for s in range(theta.shape[0]):
+        active = dist[s] < hp.threshold
+        tgt = target_angle(dist[s], hp.threshold, hp.max_amplitude) if active else 0.0
+        theta[s], omega[s], integ[s] = hinge_substeps(theta[s], omega[s], integ[s], tgt, active, hp, dt)
+
+
+@njit(cache=True, parallel=True)
+def walls_step(theta, omega, integ, dist, hp, dt):
+    """Batched hinge update in place. theta, omega, integ, dist: (B, S)."""
+    for b in prange(theta.shape[0]):
+        walls_step_env(theta[b], omega[b], integ[b], dist[b], hp, dt)
+
+
+@dataclass(frozen=True)
+class Arena:
+    """Static wall geometry plus hinge parameters, derived from the config.
+
+    Plates are ordered wall by wall: south (y = 0, x increasing), east (x = W), north (y = L),
+    west (x = 0), each with ``n_segments`` plates, S = 4 · n_segments in all.
+
+    Attributes (arrays, m):
+        width, length, altitude: arena size and flight height.
+        seg_a, seg_b (S, 2): each segment's full-pitch rest line at flight height (for distances).
+        plate_a, plate_b (S, 2): the plate's own width (fraction of the pitch), centred in its pitch.
+        normal (S, 2): unit inward normal of each plate's wall.
+        wall_index (S,): 0 south, 1 east, 2 north, 3 west.
+        lever: hinge height − altitude (m); the surface at flight height moves lever · sin θ inward.
+        hinge: :class:`HingeParams`.
+    """
+
+    width: float
+    length: float
+    altitude: float
+    seg_a: np.ndarray
+    seg_b: np.ndarray
+    plate_a: np.ndarray
+    plate_b: np.ndarray
+    normal: np.ndarray
+    wall_index: np.ndarray
+    lever: float
+    hinge: HingeParams
+
+    @classmethod
+    def from_config(cls, arena: ArenaConfig, walls: WallConfig) -> "Arena":
+        W, L, n = arena.width, arena.length, walls.n_segments
+        corners = [((0.0, 0.0), (W, 0.0)), ((W, 0.0), (W, L)), ((W, L), (0.0, L)), ((0.0, L), (0.0, 0.0))]
+        normals = [(0.0, 1.0), (-1.0, 0.0), (0.0, -1.0), (1.0, 0.0)]
+        seg_a, seg_b, plate_a, plate_b, nrm, widx = [], [], [], [], [], []
+        frac = walls.plate_width_fraction
+        for w, ((x0, y0), (x1, y1)) in enumerate(corners):
+            for k in range(n):
+                a = np.array([x0 + (x1 - x0) * k / n, y0 + (y1 - y0) * k / n])
+                b = np.array([x0 + (x1 - x0) * (k + 1) / n, y0 + (y1 - y0) * (k + 1) / n])
+                mid, half = 0.5 * (a + b), 0.5 * (b - a) * frac
+                seg_a.append(a)
+                seg_b.append(b)
+                plate_a.append(mid - half)
+                plate_b.append(mid + half)
+                nrm.append(normals[w])
+                widx.append(w)
+        m, Lp = walls.plate_mass, walls.plate_length
+        hinge = HingeParams(
+            bending=bool(walls.bending),
+            threshold=walls.threshold,
+            max_amplitude=np.deg2rad(walls.max_amplitude_deg),
+            p=walls.pid_p,
+            i=walls.pid_i,
+            d=walls.pid_d,
+            joint_force=walls.joint_force,
+            friction=walls.friction,
+            inertia=m * Lp * Lp / 3.0,
+            gravity_torque=m * GRAVITY * Lp / 2.0,
+            substeps=walls.substeps,
+        )
+        arr = lambda v: np.ascontiguousarray(np.array(v, dtype=float))  # noqa: E731
+        return cls(
+            width=W, length=L, altitude=arena.altitude,
+            seg_a=arr(seg_a), seg_b=arr(seg_b), plate_a=arr(plate_a), plate_b=arr(plate_b),
+            normal=arr(nrm), wall_index=np.array(widx, dtype=np.int64),
+            lever=max(0.0, walls.hinge_height - arena.altitude), hinge=hinge,
+        )
+
+    @property
+    def n_plates(self) -> int:
+        return self.seg_a.shape[0]
+
+    def displacement(self, theta):
+        """Inward displacement (m) of each plate surface at flight height: lever · sin θ. (..., S) → (..., S)."""
+        return self.lever * np.sin(theta)
+
+    def plate_surfaces(self, theta):
+        """Plate surfaces at flight height as line segments the sensors see.
+
+        theta (B, S) rad → (a, b), each (B, S, 2) m: the plate (its own width) shifted along the
+        inward normal by lever · sin θ.
+        """
+        shift = self.displacement(np.asarray(theta))[..., None] * self.normal
+        return self.plate_a + shift, self.plate_b + shift
+
+    def max_equilibrium_angle(self) -> float:
+        """Largest angle (rad) the motor can hold against gravity: asin(joint_force / (m g L/2)), capped at π/2."""
+        r = self.hinge.joint_force / self.hinge.gravity_torque
+        return float(np.arcsin(min(1.0, r)))

@@ -1,0 +1,1 @@
+"""Swarm controllers: functions from a copter's own state/sensor readings to velocity commands."""

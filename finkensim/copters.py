@@ -1,0 +1,136 @@
+"""Kinematic copters at fixed altitude: commanded velocity and yaw rate with lag and limits.
+
+Per copter and step (dt), with v the world-frame velocity (m/s) and ω the yaw rate (rad/s)::
+
+    v_cmd  ← v_cmd scaled to |v_cmd| ≤ max_speed
+    v_lag  = v + (v_cmd − v)(1 − exp(−dt/τ_v))          (first-order lag; τ_v = 0 → v_cmd)
+    a      = (v_lag − v)/dt, scaled to |a| ≤ max_accel
+    v     ← v + a dt;  p ← p + v dt                      (semi-implicit Euler)
+    ω     ← same lag toward clip(ω_cmd, ±max_yaw_rate) with τ_ψ;  ψ ← wrap(ψ + ω dt)
+
+A copter whose body would cross a wall is put back on the wall (centre at least one radius
+inside), loses its velocity component into the wall, and a wall contact is counted when the
+touch begins. Two copters whose bodies overlap (centre distance < 2 radius) are in collision;
+a collision is counted for each copter when its overlap begins. Overlaps are counted, not
+resolved (the kinematic model has no contact forces).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from .config import ArenaConfig, CopterConfig
+
+
+class CopterParams(NamedTuple):
+    """Scalars of the copter model in SI units, as passed to the kernels."""
+
+    radius: float
+    max_speed: float
+    max_accel: float
+    velocity_tau: float
+    max_yaw_rate: float
+    yaw_tau: float
+    width: float
+    length: float
+
+    @classmethod
+    def from_config(cls, copters: CopterConfig, arena: ArenaConfig) -> "CopterParams":
+        return cls(
+            radius=copters.radius,
+            max_speed=copters.max_speed,
+            max_accel=copters.max_accel,
+            velocity_tau=copters.velocity_tau,
+            max_yaw_rate=np.deg2rad(copters.max_yaw_rate_deg),
+            yaw_tau=copters.yaw_tau,
+            width=arena.width,
+            length=arena.length,
+        )
+
+
+@njit(cache=True, inline="always")
+def _lag_factor(tau, dt):
+    return 1.0 if tau <= 0.0 else 1.0 - np.exp(-dt / tau)
+
+
+@njit(cache=True, inline="always")
+def wrap_angle(a):
+    """Wrap an angle (rad) to [−π, π)."""
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@njit(cache=True, inline="always")
+def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
+    """Advance one copter in place. pos, vel, acc, cmd_v: (2,) arrays; yaw, yaw_rate, cmd_w: floats.
+
+    Writes the applied world-frame acceleration into ``acc`` (m/s², before wall contact).
+    Returns (yaw, yaw_rate, touching_wall).
+    """
+    cx, cy = cmd_v[0], cmd_v[1]
+    sp = np.sqrt(cx * cx + cy * cy)
+    if sp > cp.max_speed:
+        cx *= cp.max_speed / sp
+        cy *= cp.max_speed / sp
+    k = _lag_factor(cp.velocity_tau, dt)
+    ax = (cx - vel[0]) * k / dt
+    ay = (cy - vel[1]) * k / dt
+    an = np.sqrt(ax * ax + ay * ay)
+    if an > cp.max_accel:
+        ax *= cp.max_accel / an
+        ay *= cp.max_accel / an
+    acc[0] = ax
+    acc[1] = ay
+    vel[0] += ax * dt
+    vel[1] += ay * dt
+    pos[0] += vel[0] * dt
+    pos[1] += vel[1] * dt
+    r = cp.radius
+    touching = False
+    if pos[0] < r:
+        pos[0] = r
+        vel[0] = max(vel[0], 0.0)
+        touching = True
+    elif pos[0] > cp.width - r:
+        pos[0] = cp.width - r
+        vel[0] = min(vel[0], 0.0)
+        touching = True
+    if pos[1] < r:
+        pos[1] = r
+        vel[1] = max(vel[1], 0.0)
+        touching = True
+    elif pos[1] > cp.length - r:
+        pos[1] = cp.length - r
+        vel[1] = min(vel[1], 0.0)
+        touching = True
+    w_cmd = min(cp.max_yaw_rate, max(-cp.max_yaw_rate, cmd_w))
+    yaw_rate += (w_cmd - yaw_rate) * _lag_factor(cp.yaw_tau, dt)
+    yaw = wrap_angle(yaw + yaw_rate * dt)
+    return yaw, yaw_rate, touching
+
+
+@njit(cache=True, inline="always")
+def update_contacts_env(pos, radius, touching, in_wall, wall_contacts, in_collision, collisions):
+    """Count contact onsets for one environment (N copters) in place.
+
+    touching (N,) bool: copter at a wall this step. Updates in_wall/in_collision flags and
+    increments wall_contacts/collisions (N,) where a contact begins.
+    """
+    N = pos.shape[0]
+    lim2 = (2.0 * radius) ** 2
+    for i in range(N):
+        overlap = False
+        for j in range(N):
+            if j != i:
+                dx = pos[i, 0] - pos[j, 0]
+                dy = pos[i, 1] - pos[j, 1]
+                if dx * dx + dy * dy < lim2:
+                    overlap = True
+                    break
+        if overlap and not in_collision[i]:
+            collisions[i] += 1
+        in_collision[i] = overlap
+        if touching[i] and not in_wall[i]:
+            wall_contacts[i] += 1
+        in_wall[i] = touching[i]

@@ -1,0 +1,325 @@
+"""The batched world: state as arrays with a leading environment axis, pure ``init``/``step``.
+
+``World(cfg)`` holds what never changes during a run (arena geometry, model parameters).
+``WorldState`` holds what does, as arrays shaped ``(B, N, ...)`` for copters and ``(B, S)``
+for wall plates (B environments, N copters, S plates). One code path serves B = 1 and
+B = 10 000: every kernel loops over the environment axis with ``prange``, and all randomness
+is keyed by (seed, env_id, step, copter, stream), so environment k of a batch is bit-identical
+to a single run with ``env_ids=[k]``.
+
+    world = World(load_config())
+    state = world.init(n_envs=64, seed=1)
+    state = world.step(state, cmd_vel, cmd_yaw_rate)       # pure: returns a new state
+    final, traj = world.rollout(state, n_steps=1200)       # compiled loop, no per-step Python
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from typing import Callable
+
+import numpy as np
+from numba import njit, prange
+
+from .arena import Arena, HingeParams, walls_step_env
+from .behaviours.random_walk import RandomWalkParams, random_walk_env
+from .config import Config, ConfigError, load_config
+from .copters import CopterParams, move_copter, update_contacts_env
+from .kernels.geometry import nearest_body_distance_env
+from .kernels.rng import STREAM_INIT, counter_key, uniform
+
+
+@dataclass(frozen=True)
+class WorldState:
+    """Everything that changes during a run. Arrays are owned by this state (never aliased).
+
+    Attributes:
+        pos (B, N, 2) m; vel (B, N, 2) m/s (world frame); acc (B, N, 2) m/s², the world-frame
+        acceleration applied in the last step; yaw (B, N) rad in [−π, π); yaw_rate (B, N) rad/s.
+        theta (B, S) rad plate hinge angles (positive into the arena); omega (B, S) rad/s;
+        integ (B, S) rad·s, PID integral.
+        in_wall, in_collision (B, N) bool: contact now; wall_contacts, collisions (B, N) int64:
+        contact onsets counted since init.
+        step: steps taken since init (int); seed (int); env_ids (B,) int64 global environment indices.
+    """
+
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    yaw: np.ndarray
+    yaw_rate: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    integ: np.ndarray
+    in_wall: np.ndarray
+    in_collision: np.ndarray
+    wall_contacts: np.ndarray
+    collisions: np.ndarray
+    step: int
+    seed: int
+    env_ids: np.ndarray
+
+    @property
+    def n_envs(self) -> int:
+        return self.pos.shape[0]
+
+    @property
+    def n_copters(self) -> int:
+        return self.pos.shape[1]
+
+    @property
+    def pose(self) -> np.ndarray:
+        """(B, N, 3): x, y, yaw."""
+        return np.concatenate([self.pos, self.yaw[..., None]], axis=-1)
+
+    def copy(self) -> "WorldState":
+        return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)
+                                if isinstance(getattr(self, f.name), np.ndarray)})
+
+    def select(self, envs) -> "WorldState":
+        """The sub-batch of environments ``envs`` (index array or slice), as an independent state."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = np.ascontiguousarray(v[envs]) if isinstance(v, np.ndarray) else v
+        return WorldState(**out)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """States recorded by :meth:`World.rollout` *before* each step: sample k is at time (step0 + k)·dt.
+
+    pose (T, B, N, 3); vel, acc (T, B, N, 2); yaw_rate (T, B, N); theta (T, B, S); t (T,) s.
+    """
+
+    t: np.ndarray
+    pose: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    yaw_rate: np.ndarray
+    theta: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def step_env(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
+             collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, dt, dist_buf, touching_buf):
+    """Advance one environment by dt in place: copters move, contacts are counted, plates respond."""
+    for n in range(pos.shape[0]):
+        yaw[n], yaw_rate[n], touching_buf[n] = move_copter(
+            pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
+    update_contacts_env(pos, cp.radius, touching_buf, in_wall, wall_contacts, in_collision, collisions)
+    nearest_body_distance_env(seg_a, seg_b, pos, cp.radius, dist_buf)
+    walls_step_env(theta, omega, integ, dist_buf, hp, dt)
+
+
+@njit(cache=True, parallel=True)
+def _step_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
+                collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, dt):
+    for b in prange(pos.shape[0]):
+        dist_buf = np.empty(seg_a.shape[0])
+        touching = np.empty(pos.shape[1], dtype=np.bool_)
+        step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
+                 in_collision[b], wall_contacts[b], collisions[b], cmd_v[b], cmd_w[b], cp, hp, seg_a, seg_b,
+                 dt, dist_buf, touching)
+
+
+CONTROLLER_HOVER = 0
+CONTROLLER_RANDOM_WALK = 1
+
+
+@njit(cache=True, parallel=True)
+def _rollout_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
+                   collisions, seed, env_ids, step0, n_steps, controller, rw, cp, hp, seg_a, seg_b, dt,
+                   rec_pose, rec_vel, rec_acc, rec_yaw_rate, rec_theta):
+    """T steps of B environments with a built-in controller; records into rec_* when they have T rows."""
+    B, N, _ = pos.shape
+    record = rec_pose.shape[0] == n_steps
+    for b in prange(B):
+        dist_buf = np.empty(seg_a.shape[0])
+        touching = np.empty(N, dtype=np.bool_)
+        cmd_v = np.zeros((N, 2))
+        cmd_w = np.zeros(N)
+        for t in range(n_steps):
+            if record:
+                for n in range(N):
+                    rec_pose[t, b, n, 0] = pos[b, n, 0]
+                    rec_pose[t, b, n, 1] = pos[b, n, 1]
+                    rec_pose[t, b, n, 2] = yaw[b, n]
+                    rec_vel[t, b, n, 0] = vel[b, n, 0]
+                    rec_vel[t, b, n, 1] = vel[b, n, 1]
+                    rec_acc[t, b, n, 0] = acc[b, n, 0]
+                    rec_acc[t, b, n, 1] = acc[b, n, 1]
+                    rec_yaw_rate[t, b, n] = yaw_rate[b, n]
+                for s in range(seg_a.shape[0]):
+                    rec_theta[t, b, s] = theta[b, s]
+            if controller == CONTROLLER_RANDOM_WALK:
+                random_walk_env(pos[b], seed, env_ids[b], step0 + t, rw, cmd_v, cmd_w)
+            step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
+                     in_collision[b], wall_contacts[b], collisions[b], cmd_v, cmd_w, cp, hp, seg_a, seg_b,
+                     dt, dist_buf, touching)
+
+
+@njit(cache=True, parallel=True)
+def _init_positions(seed, env_ids, n, width, length, radius, min_sep, pos, yaw):
+    """Uniform random placement at least ``min_sep`` apart (relaxed by half after 2000 failed tries)."""
+    for b in prange(env_ids.shape[0]):
+        sep = min_sep
+        for i in range(n):
+            key = counter_key(seed, env_ids[b], 0, i, STREAM_INIT)
+            attempt = 0
+            while True:
+                x = radius + (width - 2 * radius) * uniform(key, 2 * attempt + 1)
+                y = radius + (length - 2 * radius) * uniform(key, 2 * attempt + 2)
+                ok = True
+                for j in range(i):
+                    dx = x - pos[b, j, 0]
+                    dy = y - pos[b, j, 1]
+                    if dx * dx + dy * dy < sep * sep:
+                        ok = False
+                        break
+                attempt += 1
+                if ok:
+                    break
+                if attempt % 2000 == 0:
+                    sep *= 0.5
+            pos[b, i, 0] = x
+            pos[b, i, 1] = y
+            yaw[b, i] = 2.0 * np.pi * uniform(key, 0) - np.pi
+
+
+class World:
+    """Static part of a simulation (config, arena geometry, kernel parameters) and its pure functions.
+
+    Args:
+        cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
+    """
+
+    def __init__(self, cfg: Config | str | dict | None = None):
+        self.cfg = cfg if isinstance(cfg, Config) else load_config(cfg)
+        c = self.cfg
+        self.arena = Arena.from_config(c.arena, c.walls)
+        self.copter_params = CopterParams.from_config(c.copters, c.arena)
+        self.hinge_params: HingeParams = self.arena.hinge
+        self.random_walk_params = RandomWalkParams.from_config(c.behaviour, c.arena.width, c.arena.length)
+        self.dt = c.simulation.dt
+
+    @property
+    def n_copters(self) -> int:
+        return self.cfg.copters.n
+
+    def init(self, n_envs: int | None = None, seed: int | None = None, env_ids=None, positions=None,
+             yaw=None) -> WorldState:
+        """Initial state: copters at rest, placed at random (or at ``positions`` (B, N, 2) m), plates hanging.
+
+        ``env_ids`` (B,) are the global environment indices that key the randomness; by default
+        ``arange(n_envs)``. ``seed`` defaults to ``simulation.seed``.
+        """
+        c = self.cfg
+        seed = c.simulation.seed if seed is None else int(seed)
+        if env_ids is None:
+            n_envs = c.simulation.n_envs if n_envs is None else int(n_envs)
+            env_ids = np.arange(n_envs, dtype=np.int64)
+        env_ids = np.ascontiguousarray(env_ids, dtype=np.int64)
+        if env_ids.ndim != 1 or env_ids.size == 0:
+            raise ConfigError(f"env_ids has shape {env_ids.shape}: expected a non-empty 1-D array of environment indices")
+        if n_envs is not None and n_envs != env_ids.size:
+            raise ConfigError(f"n_envs = {n_envs} but env_ids has {env_ids.size} entries")
+        B, N, S = env_ids.size, c.copters.n, self.arena.n_plates
+        r = c.copters.radius
+        if 2 * r >= min(c.arena.width, c.arena.length):
+            raise ConfigError(f"copters.radius = {r}: a copter does not fit in the {c.arena.width} x {c.arena.length} m arena")
+        pos = np.zeros((B, N, 2))
+        yaw0 = np.zeros((B, N))
+        _init_positions(seed, env_ids, N, c.arena.width, c.arena.length, r, c.copters.min_separation, pos, yaw0)
+        if positions is not None:
+            positions = np.asarray(positions, dtype=float)
+            if positions.shape != (B, N, 2):
+                raise ConfigError(f"positions has shape {positions.shape}: expected (B, N, 2) = ({B}, {N}, 2)")
+            lo = np.array([r, r])
+            hi = np.array([c.arena.width - r, c.arena.length - r])
+            if not np.all(np.isfinite(positions)) or np.any(positions < lo - 1e-12) or np.any(positions > hi + 1e-12):
+                raise ConfigError(f"positions: every copter centre must lie in [{r}, {hi[0]}] x [{r}, {hi[1]}] m")
+            pos = positions.copy()
+        if yaw is not None:
+            yaw = np.asarray(yaw, dtype=float)
+            if yaw.shape != (B, N):
+                raise ConfigError(f"yaw has shape {yaw.shape}: expected (B, N) = ({B}, {N})")
+            yaw0 = yaw.copy()
+        return WorldState(
+            pos=pos, vel=np.zeros((B, N, 2)), acc=np.zeros((B, N, 2)), yaw=yaw0, yaw_rate=np.zeros((B, N)),
+            theta=np.zeros((B, S)), omega=np.zeros((B, S)), integ=np.zeros((B, S)),
+            in_wall=np.zeros((B, N), dtype=bool), in_collision=np.zeros((B, N), dtype=bool),
+            wall_contacts=np.zeros((B, N), dtype=np.int64), collisions=np.zeros((B, N), dtype=np.int64),
+            step=0, seed=seed, env_ids=env_ids,
+        )
+
+    def _check_commands(self, state, cmd_vel, cmd_yaw_rate):
+        B, N = state.n_envs, state.n_copters
+        cmd_vel = np.ascontiguousarray(np.broadcast_to(np.asarray(cmd_vel, dtype=float), (B, N, 2))) \
+            if np.ndim(cmd_vel) else None
+        if cmd_vel is None or cmd_vel.shape != (B, N, 2):
+            raise ConfigError(f"cmd_vel: expected shape (B, N, 2) = ({B}, {N}, 2) m/s")
+        if cmd_yaw_rate is None:
+            cmd_yaw_rate = np.zeros((B, N))
+        cmd_yaw_rate = np.ascontiguousarray(np.broadcast_to(np.asarray(cmd_yaw_rate, dtype=float), (B, N)))
+        if not (np.all(np.isfinite(cmd_vel)) and np.all(np.isfinite(cmd_yaw_rate))):
+            raise ConfigError("cmd_vel / cmd_yaw_rate contain NaN or inf: expected finite commands")
+        return cmd_vel, cmd_yaw_rate
+
+    def step(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> WorldState:
+        """One step of every environment: a new state; the input state is left untouched.
+
+        cmd_vel (B, N, 2) m/s world frame (broadcastable); cmd_yaw_rate (B, N) rad/s (default 0).
+        """
+        new = state.copy()
+        self.step_inplace(new, cmd_vel, cmd_yaw_rate)
+        return replace(new, step=state.step + 1)
+
+    def step_inplace(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> None:
+        """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced)."""
+        cmd_vel, cmd_yaw_rate = self._check_commands(state, cmd_vel, cmd_yaw_rate)
+        s = state
+        _step_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
+                    s.wall_contacts, s.collisions, cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params,
+                    self.arena.seg_a, self.arena.seg_b, self.dt)
+
+    def rollout(self, state: WorldState, n_steps: int, controller: str | Callable | None = None,
+                record: bool = True) -> tuple[WorldState, Trajectory | None]:
+        """Run ``n_steps`` steps; returns (final state, trajectory recorded before each step, or None).
+
+        ``controller``: ``"random_walk"`` or ``"hover"`` run entirely in compiled code (no per-step
+        Python); a callable ``f(world, state) -> (cmd_vel, cmd_yaw_rate)`` is called once per step.
+        Default: ``behaviour.kind`` from the config.
+        """
+        if not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
+            raise ConfigError(f"n_steps = {n_steps!r}: expected a non-negative integer")
+        controller = self.cfg.behaviour.kind if controller is None else controller
+        new = state.copy()
+        B, N, S, T = state.n_envs, state.n_copters, self.arena.n_plates, int(n_steps)
+        shape_t = T if record else 0
+        rec = dict(pose=np.empty((shape_t, B, N, 3)), vel=np.empty((shape_t, B, N, 2)),
+                   acc=np.empty((shape_t, B, N, 2)), yaw_rate=np.empty((shape_t, B, N)),
+                   theta=np.empty((shape_t, B, S)))
+        if callable(controller):
+            for k in range(T):
+                if record:
+                    rec["pose"][k] = new.pose
+                    rec["vel"][k], rec["acc"][k] = new.vel, new.acc
+                    rec["yaw_rate"][k], rec["theta"][k] = new.yaw_rate, new.theta
+                cmd_v, cmd_w = controller(self, new)
+                self.step_inplace(new, cmd_v, cmd_w)
+                new = replace(new, step=new.step + 1)
+        else:
+            codes = {"hover": CONTROLLER_HOVER, "random_walk": CONTROLLER_RANDOM_WALK}
+            if controller not in codes:
+                raise ConfigError(f"controller = {controller!r}: expected one of {', '.join(codes)} or a callable")
+            s = new
+            _rollout_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall,
+                           s.in_collision, s.wall_contacts, s.collisions, s.seed, s.env_ids, s.step, T,
+                           codes[controller], self.random_walk_params, self.copter_params, self.hinge_params,
+                           self.arena.seg_a, self.arena.seg_b, self.dt, rec["pose"], rec["vel"], rec["acc"],
+                           rec["yaw_rate"], rec["theta"])
+            new = replace(new, step=new.step + T)
+        traj = None
+        if record:
+            traj = Trajectory(t=(state.step + np.arange(T)) * self.dt, **rec)
+        return new, traj
