@@ -1,0 +1,61 @@
+"""Plain NumPy reference of finkensim.sensors.imu, used only by tests.
+
+Consumes the same counter-based normals (``normals_array``) as the kernel: per (seed, env, step,
+copter, STREAM_IMU) cell, normals 0-2 are the white noise (acc x, acc y, gyro), 3-5 the bias
+increments, 6-8 the turn-on bias.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from finkensim.kernels.rng import STREAM_IMU, normals_array
+
+
+def ideal_ref(acc_world, yaw, yaw_rate):
+    """Rotate the world acceleration by −yaw with an explicit rotation matrix R(yaw)ᵀ."""
+    acc_world = np.asarray(acc_world, float)
+    yaw = np.asarray(yaw, float)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # body → world, (..., 2, 2)
+    acc_body = np.einsum("...ji,...j->...i", R, acc_world)  # Rᵀ a
+    return acc_body, np.asarray(yaw_rate, float).copy()
+
+
+def _cell_normals(seed, env_ids, step, N, n):
+    """(B, N, n) standard normals of the cells (seed, env_ids[b], step, copter, STREAM_IMU)."""
+    return np.array([[normals_array(seed, int(e), int(step), c, STREAM_IMU, n) for c in range(N)]
+                     for e in env_ids]).reshape(len(env_ids), N, n)
+
+
+def imu_step_ref(acc_world, yaw, yaw_rate, bias, acc_density, acc_walk_density, gyro_density, gyro_walk_density,
+                 dt, seed, env_ids, step):
+    """One step from the continuous densities; returns (acc_meas, gyro_meas, new_bias) — bias not mutated."""
+    acc_world = np.asarray(acc_world, float)
+    B, N, _ = acc_world.shape
+    z = _cell_normals(seed, env_ids, step, N, 6)
+    sigma = np.array([acc_density, acc_density, gyro_density]) / np.sqrt(dt)
+    walk = np.array([acc_walk_density, acc_walk_density, gyro_walk_density]) * np.sqrt(dt)
+    acc_body, gyro = ideal_ref(acc_world, yaw, yaw_rate)
+    ideal = np.concatenate([acc_body, gyro[..., None]], axis=-1)  # (B, N, 3)
+    meas = ideal + bias + sigma * z[..., 0:3]
+    new_bias = bias + walk * z[..., 3:6]
+    return meas[..., 0:2], meas[..., 2], new_bias
+
+
+def imu_trajectory_ref(acc_world, yaw, yaw_rate, bias0, acc_density, acc_walk_density, gyro_density,
+                       gyro_walk_density, dt, seed, env_ids, step0):
+    """Loop ``imu_step_ref`` over T samples (T, B, N, ...); returns (imu_acc, imu_gyro, final_bias)."""
+    T = np.shape(acc_world)[0]
+    bias = np.array(bias0, float)
+    accs, gyros = [], []
+    for t in range(T):
+        a, g, bias = imu_step_ref(acc_world[t], yaw[t], yaw_rate[t], bias, acc_density, acc_walk_density,
+                                  gyro_density, gyro_walk_density, dt, seed, env_ids, step0 + t)
+        accs.append(a)
+        gyros.append(g)
+    return np.array(accs), np.array(gyros), bias
+
+
+def turn_on_ref(N, seed, env_ids, step, acc_spread, gyro_spread):
+    z = _cell_normals(seed, env_ids, step, N, 9)[..., 6:9]
+    return z * np.array([acc_spread, acc_spread, gyro_spread])
