@@ -1,0 +1,206 @@
+"""The ``finkensim`` command line.
+
+    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif]
+    finkensim --version
+
+Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
+``func`` (``args -> exit code``); add new subcommands (sweep, gap, bench, ...) the same way in
+:func:`build_parser`. Bad input (a missing or unreadable file, bad TOML, a config value out of
+range, an unknown option) prints one line ``finkensim <command>: error: ...`` on stderr and
+exits with code 2; there is no traceback for user errors.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Sequence
+
+from . import __version__
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """Bad input from the user; ``main`` prints it as one line and returns exit code 2."""
+
+    def __init__(self, prog: str, message: str):
+        super().__init__(message)
+        self.prog = prog
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors become :class:`UsageError` (no usage dump, no SystemExit)."""
+
+    def error(self, message):  # noqa: D401 - argparse API
+        raise UsageError(self.prog, message)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+# ------------------------------------------------------------------------------------------
+# finkensim run
+# ------------------------------------------------------------------------------------------
+
+ARENA_TRAIL_SECONDS = 10.0  # trail length drawn in arena.png
+
+
+def _add_run(sub) -> None:
+    p = sub.add_parser(
+        "run",
+        help="simulate one flight, write its log, pictures and animation",
+        description="Simulate one flight of a scenario and write DIR/flight.npz (flight log), "
+                    "DIR/arena.png (arena at the largest wall deflection), DIR/wall_response.png "
+                    "and DIR/flight.gif.",
+    )
+    p.add_argument("scenario", nargs="?", default=None,
+                   help="scenario TOML file (default: the built-in scenario, 6 copters random-walking for 60 s)")
+    p.add_argument("--out", default="out/run", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="flight length in s (default: simulation.duration of the scenario)")
+    p.add_argument("--seed", type=int, default=None, metavar="N",
+                   help="random seed (default: simulation.seed of the scenario)")
+    p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.set_defaults(func=cmd_run)
+
+
+def _load_scenario_arg(prog: str, scenario: str | None):
+    from .config import ConfigError
+    from .scenario import load_scenario
+
+    if scenario is None:
+        return load_scenario(None)
+    path = Path(scenario)
+    if not path.exists():
+        raise UsageError(prog, f"scenario file {scenario!r} does not exist")
+    if not path.is_file():
+        raise UsageError(prog, f"scenario {scenario!r} is not a file")
+    try:
+        return load_scenario(path)
+    except ConfigError as exc:
+        msg = str(exc)
+        raise UsageError(prog, msg if str(path) in msg else f"{scenario}: {msg}") from None
+    except UnicodeDecodeError:
+        raise UsageError(prog, f"{scenario}: not a text (TOML) file") from None
+    except OSError as exc:
+        raise UsageError(prog, f"cannot read scenario {scenario!r}: {exc.strerror or exc}") from None
+
+
+def _use_agg() -> None:
+    """Headless plotting for the CLI unless the user chose a backend (or pyplot is already in use)."""
+    if "MPLBACKEND" not in os.environ and "matplotlib.pyplot" not in sys.modules:
+        import matplotlib
+
+        matplotlib.use("Agg")
+
+
+def cmd_run(args) -> int:
+    prog = args.prog
+    t_start = time.perf_counter()
+    from .config import ConfigError
+    from .flightlog import save
+    from .scenario import simulate_flight
+
+    cfg = _load_scenario_arg(prog, args.scenario)
+    out = Path(args.out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(prog, f"cannot create output directory {str(out)!r}: {exc.strerror or exc}") from None
+
+    t0 = time.perf_counter()
+    try:
+        log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed)
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
+    t_sim = time.perf_counter() - t0
+    sim = world.cfg.simulation
+    print(f"{prog}: simulated {sim.duration:g} s of {world.n_copters} copters "
+          f"({log.n_steps} samples, dt {sim.dt:g} s, seed {sim.seed}, {world.cfg.behaviour.kind}) in {t_sim:.2f} s")
+
+    _use_agg()
+    import matplotlib.pyplot as plt
+
+    from . import viz
+
+    written: list[tuple[str, Path, str]] = []
+    try:
+        path = out / "flight.npz"
+        save(log, path)
+        written.append(("flight log", path, f"{log.n_steps} x {log.n_copters} poses"))
+
+        k = viz.peak_deflection_index(traj)
+        k0 = max(0, k - int(round(ARENA_TRAIL_SECONDS / sim.dt)))
+        fig, _ = viz.plot_arena(world, traj.pose[k, 0, :, :2], traj.pose[k, 0, :, 2], traj.theta[k, 0],
+                                trails=traj.pose[k0:k + 1, 0], t=float(traj.t[k]),
+                                title="Arena at the largest wall deflection")
+        path = out / "arena.png"
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
+        written.append(("arena picture", path, f"t = {traj.t[k]:.1f} s, trails of the last {traj.t[k] - traj.t[k0]:.0f} s"))
+
+        fig, _ = viz.plot_wall_response(world, traj)
+        path = out / "wall_response.png"
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
+        written.append(("wall response", path, "amplitude law and simulated plate angles"))
+
+        if not args.no_gif:
+            path = viz.animate(world, traj, path=out / "flight.gif")
+            from PIL import Image
+
+            with Image.open(path) as im:
+                n_frames = getattr(im, "n_frames", 1)
+            written.append(("animation", path, f"{n_frames} frames"))
+    except OSError as exc:
+        raise UsageError(prog, f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
+
+    width = max(len(w[0]) for w in written)
+    for what, path, note in written:
+        print(f"  {what:<{width}}  {path}  ({note})")
+    print(f"{prog}: wrote {len(written)} files to {out} in {time.perf_counter() - t_start:.1f} s")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------------------
+# entry point
+# ------------------------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``finkensim`` parser with one subparser per command."""
+    parser = _Parser(
+        prog="finkensim",
+        description="finkensim: fast simulator of FINken quadcopter swarms with Bernoulli walls and realistic sensors.",
+    )
+    parser.add_argument("--version", action="version", version=f"finkensim {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    _add_run(sub)
+    # later: _add_sweep(sub), _add_gap(sub), _add_bench(sub), ...
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if args.command is None:
+            raise UsageError(parser.prog, "a command is required; try 'finkensim run' or 'finkensim --help'")
+        # the prog of the chosen subparser, e.g. "finkensim run", for messages
+        args.prog = f"{parser.prog} {args.command}"
+        return int(args.func(args))
+    except UsageError as exc:
+        print(f"{exc.prog}: error: {_one_line(str(exc))}", file=sys.stderr)
+        return EXIT_USAGE
+    except SystemExit as exc:  # --help / --version
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else EXIT_USAGE)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

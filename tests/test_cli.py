@@ -1,0 +1,181 @@
+"""`finkensim run` end to end, its error handling, and the scenario it runs by default."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import finkensim
+from finkensim import flightlog
+from finkensim.cli import main
+from finkensim.config import Config, config_from_dict
+from finkensim.scenario import DEFAULT_SCENARIO_TOML, default_scenario_path, load_scenario, simulate_flight
+
+CONSOLE_SCRIPT = Path(sys.executable).parent / "finkensim"
+
+
+def _stderr_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+# ------------------------------------------------------------------------------------------
+# the default scenario
+# ------------------------------------------------------------------------------------------
+
+def test_shipped_scenario_file_matches_embedded_text():
+    assert default_scenario_path().read_text() == DEFAULT_SCENARIO_TOML
+
+
+def test_default_scenario_is_six_copters_random_walk_for_60_s():
+    cfg = load_scenario()
+    assert cfg.copters.n == 6
+    assert cfg.behaviour.kind == "random_walk"
+    assert cfg.simulation.duration == 60.0
+    assert cfg == load_scenario(default_scenario_path())
+
+
+def test_simulate_flight_log_contents():
+    log, traj, world = simulate_flight(None, duration=2.0, seed=7)
+    n_steps = int(round(2.0 / world.dt))
+    assert log.t.shape == (n_steps + 1,)
+    assert log.t[0] == 0.0 and log.t[-1] == pytest.approx(2.0)
+    assert log.pose.shape == (n_steps + 1, 6, 3)
+    np.testing.assert_array_equal(log.pose, traj.pose[:, 0])
+    assert list(log.copter_ids) == [f"copter{i}" for i in range(6)]
+    np.testing.assert_array_equal(log.arena, [3.0, 4.0])
+    assert log.meta["copter_radius"] == 0.15 and log.meta["altitude"] == 0.6
+    assert log.meta["source"] == f"finkensim {finkensim.__version__}"
+    rebuilt = config_from_dict(log.meta["config"])
+    assert rebuilt == world.cfg
+    assert rebuilt.simulation.duration == 2.0 and rebuilt.simulation.seed == 7
+    assert log.extras["wall_theta"].shape == (n_steps + 1, world.arena.n_plates)
+    flightlog.validate(log)
+
+
+def test_simulate_flight_is_reproducible_and_seeded():
+    a, _, _ = simulate_flight(None, duration=1.0, seed=3)
+    b, _, _ = simulate_flight(None, duration=1.0, seed=3)
+    c, _, _ = simulate_flight(None, duration=1.0, seed=4)
+    assert a == b
+    assert not np.array_equal(a.pose, c.pose)
+
+
+def test_simulate_flight_runs_one_environment_whatever_n_envs():
+    cfg = Config().replace({"simulation.n_envs": 5, "copters.n": 3, "behaviour.kind": "hover"})
+    log, traj, world = simulate_flight(cfg, duration=0.5)
+    assert traj.pose.shape[1] == 1
+    assert log.pose.shape[1] == 3
+    np.testing.assert_allclose(log.pose[-1], log.pose[0])  # hovering copters stay put
+
+
+# ------------------------------------------------------------------------------------------
+# finkensim run
+# ------------------------------------------------------------------------------------------
+
+def test_run_writes_valid_log_pictures_and_gif(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", "--out", str(out), "--duration", "3", "--seed", "5"]) == 0
+    stdout = capsys.readouterr().out
+    for name in ("flight.npz", "arena.png", "wall_response.png", "flight.gif"):
+        assert (out / name).is_file(), name
+        assert str(out / name) in stdout
+
+    log = flightlog.load(out / "flight.npz")
+    flightlog.validate(log)
+    assert log.t[-1] == pytest.approx(3.0)
+    assert log.pose.shape == (61, 6, 3)
+    assert log.meta["config"]["simulation"]["seed"] == 5
+
+    for name in ("arena.png", "wall_response.png"):
+        with Image.open(out / name) as im:
+            assert im.format == "PNG" and min(im.size) > 300
+    with Image.open(out / "flight.gif") as im:
+        assert im.format == "GIF"
+        assert 2 <= im.n_frames <= 150
+
+
+def test_run_user_scenario_and_no_gif(tmp_path):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text('[copters]\nn = 3\n\n[behaviour]\nkind = "random_walk"\n\n[simulation]\nduration = 1.0\nseed = 2\n')
+    out = tmp_path / "o"
+    assert main(["run", str(scenario), "--out", str(out), "--no-gif"]) == 0
+    assert not (out / "flight.gif").exists()
+    log = flightlog.load(out / "flight.npz")
+    assert log.pose.shape == (21, 3, 3)
+    assert (out / "arena.png").is_file() and (out / "wall_response.png").is_file()
+
+
+def test_bad_key_exits_2_naming_the_key(tmp_path, capsys):
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text("[walls]\nn_segmentz = 12\n")
+    assert main(["run", str(scenario), "--out", str(tmp_path / "o")]) == 2
+    line = _stderr_line(capsys)
+    assert "walls.n_segmentz" in line and "n_segments" in line
+    assert not (tmp_path / "o" / "flight.npz").exists()
+
+
+def test_bad_value_exits_2_naming_the_key(tmp_path, capsys):
+    scenario = tmp_path / "bad.toml"
+    scenario.write_text("[walls]\nthreshold = -1.0\n")
+    assert main(["run", str(scenario), "--out", str(tmp_path / "o")]) == 2
+    assert "walls.threshold" in _stderr_line(capsys)
+
+
+def test_bad_toml_exits_2(tmp_path, capsys):
+    scenario = tmp_path / "broken.toml"
+    scenario.write_text("[walls\nthreshold = 1\n")
+    assert main(["run", str(scenario), "--out", str(tmp_path / "o")]) == 2
+    line = _stderr_line(capsys)
+    assert "TOML" in line and "broken.toml" in line
+
+
+def test_missing_file_exits_2(tmp_path, capsys):
+    missing = tmp_path / "nope.toml"
+    assert main(["run", str(missing), "--out", str(tmp_path / "o")]) == 2
+    line = _stderr_line(capsys)
+    assert "nope.toml" in line and "does not exist" in line
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["run", "--bogus"], "--bogus"),
+    (["run", "--duration", "abc"], "--duration"),
+    (["run", "--duration", "-1"], "simulation.duration"),
+    (["run", "--duration", "0.001"], "simulation.duration"),
+    (["run", "--seed", "-3"], "simulation.seed"),
+    (["frobnicate"], "frobnicate"),
+    ([], "command"),
+])
+def test_usage_errors_exit_2_with_one_line(argv, needle, tmp_path, capsys):
+    if argv[:1] == ["run"]:
+        argv = argv + ["--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert needle in _stderr_line(capsys)
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"finkensim {finkensim.__version__}"
+
+
+@pytest.mark.skipif(not CONSOLE_SCRIPT.exists(), reason="console script not installed in this environment")
+def test_console_script(tmp_path):
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    ok = subprocess.run([str(CONSOLE_SCRIPT), "run", "--duration", "1", "--no-gif", "--out", str(tmp_path / "o")],
+                        capture_output=True, text=True, env=env, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert (tmp_path / "o" / "flight.npz").is_file()
+
+    bad = subprocess.run([str(CONSOLE_SCRIPT), "run", str(tmp_path / "missing.toml")],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert bad.returncode == 2
+    assert "Traceback" not in bad.stderr
+    assert bad.stderr.strip().count("\n") == 0 and "missing.toml" in bad.stderr
