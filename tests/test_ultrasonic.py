@@ -1,0 +1,381 @@
+"""Ultrasonic sensors: raycast geometry, error models, cross-talk, reproducibility (fixed seeds)."""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from finkensim.arena import Arena
+from finkensim.config import Config
+from finkensim.kernels.rng import STREAM_SONAR_SCHEDULE, uniforms_array
+from finkensim.sensors.ultrasonic import (
+    HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, down_readings, fire_slots, ideal_ultrasonic, rayleigh_std,
+    ultrasonic_from_trajectory, ultrasonic_readings,
+)
+from finkensim.world import World
+from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
+
+HYP = settings(derandomize=True, deadline=None, max_examples=40,
+               suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+def setup(n=1, profile="default", **sonar):
+    """(cfg, arena, params) for a 3 x 4 m arena with n copters and sonar.* overrides."""
+    cfg = Config(profile).replace({"copters.n": n, **{f"sonar.{k}": v for k, v in sonar.items()}})
+    return cfg, Arena.from_config(cfg.arena, cfg.walls), SonarModel.from_config(cfg)
+
+
+def arrays(pos, yaw, arena, theta=None):
+    pos = np.asarray(pos, dtype=float)
+    if pos.ndim == 2:
+        pos = pos[None]
+    yaw = np.asarray(yaw, dtype=float).reshape(pos.shape[:2])
+    theta = np.zeros((pos.shape[0], arena.n_plates)) if theta is None else np.asarray(theta, dtype=float)
+    return pos, yaw, theta
+
+
+# ------------------------------------------------------------------ raycast
+
+
+def test_axis_aligned_distances():
+    _, arena, sp = setup()
+    pos, yaw, th = arrays([[1.0, 2.0]], [0.0], arena)
+    dist, kind, hit = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    np.testing.assert_allclose(dist[0, 0], [2.0, 2.0, 1.0, 2.0], atol=1e-12)  # front, left, back, right
+    assert (kind == HIT_WALL).all()
+    np.testing.assert_allclose(hit[0, 0], [[3, 2], [1, 4], [0, 2], [1, 0]], atol=1e-12)
+    # facing +y: front sees y = 4, left x = 0, back y = 0, right x = 3
+    pos, yaw, th = arrays([[1.0, 2.1]], [np.pi / 2], arena)
+    dist, _, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    np.testing.assert_allclose(dist[0, 0], [1.9, 1.0, 2.1, 2.0], atol=1e-12)
+
+
+def test_offset_measured_from_sonar():
+    _, arena, sp = setup(offset=0.1)
+    pos, yaw, th = arrays([[1.0, 2.0]], [0.0], arena)
+    dist, _, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    np.testing.assert_allclose(dist[0, 0], [1.9, 1.9, 0.9, 1.9], atol=1e-12)
+
+
+def test_copter_in_beam_is_hit_before_wall_and_own_body_is_ignored():
+    _, arena, sp = setup(n=2)
+    pos, yaw, th = arrays([[1.0, 2.0], [2.2, 2.0]], [0.0, 0.0], arena)
+    dist, kind, hit = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    assert dist[0, 0, 0] == pytest.approx(1.2 - 0.15, abs=1e-12) and kind[0, 0, 0] == HIT_COPTER
+    np.testing.assert_allclose(hit[0, 0, 0], [2.05, 2.0], atol=1e-12)
+    assert dist[0, 1, 2] == pytest.approx(1.05, abs=1e-12) and kind[0, 1, 2] == HIT_COPTER  # B's back sees A
+    assert dist[0, 1, 0] == pytest.approx(0.8, abs=1e-12) and kind[0, 1, 0] == HIT_WALL  # not its own rim
+
+
+def _east_plate_at(arena, y):
+    for s in range(arena.n_plates):
+        if arena.wall_index[s] == 1 and min(arena.plate_a[s, 1], arena.plate_b[s, 1]) < y < max(
+                arena.plate_a[s, 1], arena.plate_b[s, 1]):
+            return s
+    raise AssertionError("no plate")
+
+
+@pytest.mark.parametrize("angle", [0.1, 0.3, 0.7])
+def test_bent_plate_shortens_by_displacement(angle):
+    _, arena, sp = setup()
+    s = _east_plate_at(arena, 2.1)
+    th = np.zeros((1, arena.n_plates))
+    th[0, s] = angle
+    pos, yaw, _ = arrays([[1.0, 2.1]], [0.0], arena)
+    flat, _, _ = ideal_ultrasonic(pos, yaw, np.zeros_like(th), arena, sp)
+    bent, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    assert flat[0, 0, 0] - bent[0, 0, 0] == pytest.approx(arena.lever * math.sin(angle), abs=1e-12)
+    assert kind[0, 0, 0] == HIT_WALL
+    # a plate swung outward is behind the net: the net (backstop) still stops the ray
+    th[0, s] = -angle
+    out, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    assert out[0, 0, 0] == pytest.approx(2.0, abs=1e-12) and kind[0, 0, 0] == HIT_WALL
+
+
+def test_gap_between_plates_hits_net():
+    _, arena, sp = setup()
+    s = _east_plate_at(arena, 2.1)
+    gap_y = max(arena.plate_a[s, 1], arena.plate_b[s, 1]) + 0.001  # just past the plate edge
+    th = np.full((1, arena.n_plates), 0.5)
+    pos, yaw, _ = arrays([[1.0, gap_y]], [0.0], arena)
+    dist, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    assert dist[0, 0, 0] == pytest.approx(2.0, abs=1e-12) and kind[0, 0, 0] == HIT_WALL
+
+
+def _scene(draw, n, W=3.0, L=4.0, r=0.15):
+    xs = draw(st.lists(st.floats(r, W - r), min_size=n, max_size=n))
+    ys = draw(st.lists(st.floats(r, L - r), min_size=n, max_size=n))
+    yaws = draw(st.lists(st.floats(-math.pi, math.pi), min_size=n, max_size=n))
+    return np.stack([xs, ys], -1)[None], np.array(yaws)[None]
+
+
+@st.composite
+def scenes(draw, n=3):
+    pos, yaw = _scene(draw, n)
+    thetas = draw(st.lists(st.floats(-0.6, 0.9), min_size=64, max_size=64))
+    return pos, yaw, np.array(thetas)[None]
+
+
+@pytest.mark.parametrize("sonar", [{}, {"offset": 0.08}, {"beam": "cone", "beam_rays": 5},
+                                   {"max_range": 1.2, "beam": "cone", "cone_half_angle_deg": 20.0}])
+@HYP
+@given(scene=scenes())
+def test_ideal_matches_numpy_reference(sonar, scene):
+    _, arena, sp = setup(n=3, **sonar)
+    pos, yaw, th = scene
+    d1, k1, h1 = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    d2, k2, h2 = naive_ideal(pos, yaw, th, arena, sp)
+    np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(k1, k2)
+    np.testing.assert_allclose(h1, h2, rtol=0, atol=1e-9)
+    assert np.all(d1 <= sp.max_range) and np.all(d1 >= 0.0)
+
+
+# ------------------------------------------------------------------ error models
+
+MODELS = [
+    {},  # default: rayleigh (sign -1) + geometric cross-talk, round robin
+    {"error": "seed", "crosstalk": "constant"},
+    {"error": "gaussian", "crosstalk": "off"},
+    {"error": "none", "crosstalk": "geometric", "schedule": "simultaneous"},
+    {"error": "rayleigh", "crosstalk": "geometric", "schedule": "random_offset", "n_slots": 2},
+    {"error": "gaussian", "crosstalk": "constant", "sigma": 0.3, "beam": "cone"},
+    {"error": "rayleigh", "rayleigh_sign": 1.0, "sigma": 1.0, "crosstalk": "geometric", "schedule": "simultaneous",
+     "offset": 0.05},
+]
+
+
+@pytest.mark.parametrize("sonar", MODELS)
+@HYP
+@given(scene=scenes(n=4), seed=st.integers(0, 2**40), step=st.integers(0, 10**6))
+def test_readings_match_numpy_reference(sonar, scene, seed, step):
+    _, arena, sp = setup(n=4, **sonar)
+    pos, yaw, th = scene
+    pos, yaw, th = np.repeat(pos, 2, 0), np.repeat(yaw, 2, 0), np.repeat(th, 2, 0)
+    yaw[1] += 0.3
+    env_ids = np.array([3, 11])
+    r1 = ultrasonic_readings(pos, yaw, th, arena, sp, seed, env_ids, step)
+    r2 = naive_readings(pos, yaw, th, arena, sp, seed, env_ids, step)
+    np.testing.assert_allclose(r1, r2, rtol=0, atol=1e-9)
+    alt = np.array([[0.6, 0.1, 2.0, 3.5], [0.6, 0.6, 0.6, 0.6]])
+    d1 = down_readings(pos, sp, seed, env_ids, step, altitude=alt)
+    np.testing.assert_allclose(d1, naive_down(alt, sp, seed, env_ids, step), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("sonar", MODELS + [{"error": "seed", "crosstalk": "constant", "sigma": 1.0}])
+def test_every_reading_in_range(sonar):
+    cfg, arena, sp = setup(n=6, **sonar)
+    world = World(cfg)
+    state = world.init(64, seed=5)
+    state, _ = world.rollout(state, 30, "random_walk", record=False)
+    for step in range(3):
+        r = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 5, state.env_ids, step)
+        assert r.shape == (64, 6, 4) and np.all(r >= 0.2) and np.all(r <= 3.0)
+        d = down_readings(state.pos, sp, 5, state.env_ids, step)
+        assert d.shape == (64, 6) and np.all(d >= 0.2) and np.all(d <= 3.0)
+
+
+@pytest.mark.parametrize("error", ["rayleigh", "seed", "gaussian", "none"])
+@pytest.mark.parametrize("crosstalk", ["off", "geometric"])
+def test_no_echo_reads_max_range(error, crosstalk):
+    _, arena, sp = setup(n=1, max_range=1.0, error=error, crosstalk=crosstalk, sigma=0.3)
+    pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (50, 1, 1)), np.zeros((50, 1)), arena, np.zeros((50, 64)))
+    r, dist, kind, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 1, np.arange(50), 0, return_ideal=True)
+    assert (kind == HIT_NONE).all() and np.all(dist == 1.0)
+    assert np.all(r == 1.0)
+    d = down_readings(pos, sp, 1, np.arange(50), 0, altitude=1.5)
+    assert np.all(d == 1.0)
+
+
+def test_ideal_below_min_range_is_clamped_in_readings():
+    _, arena, sp = setup(n=2, error="none", crosstalk="off")
+    pos, yaw, th = arrays([[1.0, 2.0], [1.32, 2.0]], [0.0, 0.0], arena)
+    r, dist, kind, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
+    assert dist[0, 0, 0] == pytest.approx(0.17, abs=1e-12) and kind[0, 0, 0] == HIT_COPTER
+    assert r[0, 0, 0] == 0.2
+
+
+def _seed_profile_sample(B=5000, sigma=None):
+    extra = {} if sigma is None else {"sigma": sigma}
+    _, arena, sp = setup(n=1, profile="seed", **extra)
+    pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
+    r = ultrasonic_readings(pos, yaw, th, arena, sp, 2024, np.arange(B), 17)
+    true = np.array([1.5, 2.0, 1.5, 2.0])
+    return sp, r[:, 0, :], np.broadcast_to(true, (B, 4))
+
+
+def test_seed_profile_crosstalk_rate_and_rayleigh_term():
+    sp, r, true = _seed_profile_sample()
+    assert sp.error == 3 and sp.crosstalk == 1 and sp.crosstalk_probability == 0.68
+    halved = r == 0.5 * true
+    assert np.all(halved | (r > 0.9 * true))  # either exactly d/2 or d + (R - s)
+    n = r.size
+    rate = halved.mean()
+    assert abs(rate - 0.68) < 3 * math.sqrt(0.68 * 0.32 / n)
+    R = r[~halved] - true[~halved] + rayleigh_std(sp.sigma)
+    assert stats.kstest(R, stats.rayleigh(scale=sp.sigma).cdf).pvalue > 1e-3
+    assert stats.kstest(R, stats.rayleigh(scale=1.3 * sp.sigma).cdf).pvalue < 1e-6  # the test has power
+
+
+def test_default_rayleigh_runs_short():
+    _, arena, sp = setup(n=1, crosstalk="off", sigma=0.1)
+    B = 4000
+    pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
+    r = ultrasonic_readings(pos, yaw, th, arena, sp, 9, np.arange(B), 0)[:, 0, :]
+    R = -(r - np.array([1.5, 2.0, 1.5, 2.0])) + rayleigh_std(0.1)
+    assert stats.kstest(R.ravel(), stats.rayleigh(scale=0.1).cdf).pvalue > 1e-3
+    assert np.mean(r - [1.5, 2.0, 1.5, 2.0]) < 0  # short on average by (sqrt(pi/2) - 0.655) sigma
+
+
+def test_gaussian_moments():
+    _, arena, sp = setup(n=1, error="gaussian", crosstalk="off", sigma=0.1)
+    B = 4000
+    pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
+    e = (ultrasonic_readings(pos, yaw, th, arena, sp, 3, np.arange(B), 0)[:, 0, :] - [1.5, 2.0, 1.5, 2.0]).ravel()
+    assert stats.kstest(e, stats.norm(scale=0.1).cdf).pvalue > 1e-3
+
+
+# ------------------------------------------------------------------ geometric cross-talk
+
+
+def test_geometric_crosstalk_fires_when_facing_in_same_slot():
+    _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="simultaneous")
+    pos, yaw, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi], arena)
+    r, dist, _, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
+    assert dist[0, 0, 0] == pytest.approx(0.85) and dist[0, 1, 0] == pytest.approx(0.85)
+    assert r[0, 0, 0] == pytest.approx(0.5, abs=1e-12) and r[0, 1, 0] == pytest.approx(0.5, abs=1e-12)
+    np.testing.assert_allclose(r[0, :, 1:], dist[0, :, 1:], atol=1e-12)  # no emitter in the other cones
+    # with jitter, the cross-talk reading is 0.5 + N(0, jitter^2): still the first arrival here
+    _, _, spj = setup(n=2, error="rayleigh", crosstalk_jitter=0.02, schedule="simultaneous")
+    pos2, yaw2, th2 = arrays(np.tile(pos, (200, 1, 1)), np.tile(yaw, (200, 1)), arena, np.zeros((200, 64)))
+    rj = ultrasonic_readings(pos2, yaw2, th2, arena, spj, 0, np.arange(200), 0)
+    assert abs(rj[:, :, 0].mean() - 0.5) < 0.01 and 0.01 < rj[:, :, 0].std() < 0.03
+
+
+def test_round_robin_different_slots_never_crosstalk():
+    pos = [[1.0, 2.0], [2.0, 2.0]]
+    _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="round_robin", n_slots=2)
+    p, y, th = arrays(pos, [0.0, np.pi], arena)
+    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    np.testing.assert_allclose(r, np.clip(dist, 0.2, 3.0), atol=0)
+    np.testing.assert_array_equal(fire_slots(sp, 0, [0], 0, 2), [[0, 1]])
+    _, arena, sp1 = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="round_robin", n_slots=1)
+    r1 = ultrasonic_readings(p, y, th, arena, sp1, 0, [0], 0)
+    assert r1[0, 0, 0] == pytest.approx(0.5)
+
+
+def test_random_offset_slots_from_schedule_stream():
+    _, _, sp = setup(n=7, schedule="random_offset", n_slots=3)
+    slots = fire_slots(sp, 42, [5, 9], 13, 7)
+    for b, env in enumerate([5, 9]):
+        for n in range(7):
+            u = uniforms_array(42, env, 13, n, STREAM_SONAR_SCHEDULE, 1)[0]
+            assert slots[b, n] == int(u * 3)
+    assert set(np.unique(fire_slots(sp, 1, np.arange(50), 0, 7))) == {0, 1, 2}
+
+
+def test_no_crosstalk_without_emitter_in_cone_constructed():
+    # narrow cones: B at bearing 45 deg from A lies in none of A's cones
+    _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="simultaneous", cone_half_angle_deg=20.0)
+    p, y, th = arrays([[1.0, 2.0], [2.0, 3.0]], [0.0, -3 * np.pi / 4], arena)  # B's front points at A
+    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    np.testing.assert_array_equal(r, np.clip(dist, 0.2, 3.0))
+    # B in A's front cone but none of B's sonars points toward A (A at 45 deg off every B axis)
+    p, y, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi / 4], arena)
+    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    np.testing.assert_array_equal(r, np.clip(dist, 0.2, 3.0))
+    # turn B to face A: now it fires
+    p, y, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi], arena)
+    r = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0)
+    assert r[0, 0, 0] == pytest.approx(0.5)
+
+
+@HYP
+@given(scene=scenes(n=3), half=st.floats(5.0, 89.0), seed=st.integers(0, 1000))
+def test_geometric_crosstalk_needs_emitter_in_receiver_cone(scene, half, seed):
+    _, arena, sp = setup(n=3, error="none", crosstalk_jitter=0.0, schedule="simultaneous", cone_half_angle_deg=half)
+    pos, yaw, th = scene
+    r, dist, _, _ = ultrasonic_readings(pos, yaw, th, arena, sp, seed, [0], 0, return_ideal=True)
+    h = math.radians(half)
+    for n in range(3):
+        for k in range(4):
+            psi = yaw[0, n] + sp.mount_yaw[k]
+            u = np.array([math.cos(psi), math.sin(psi)])
+            seen = False
+            for m in range(3):
+                if m != n:
+                    w = pos[0, m] - pos[0, n]
+                    seen |= u @ w >= math.cos(h) * np.linalg.norm(w) - 1e-12
+            if not seen:
+                assert r[0, n, k] == np.clip(dist[0, n, k], 0.2, 3.0)
+            else:
+                assert r[0, n, k] <= np.clip(dist[0, n, k], 0.2, 3.0)  # cross-talk can only shorten
+
+
+# ------------------------------------------------------------------ beam, reproducibility
+
+
+def test_cone_beam_sees_off_axis_copter():
+    b = (1.0 + math.cos(math.radians(30)), 2.0 + math.sin(math.radians(30)))
+    _, arena, ray = setup(n=2)
+    _, _, cone = setup(n=2, beam="cone", beam_rays=7)  # rays every 15 deg across +-45 deg
+    p, y, th = arrays([[1.0, 2.0], b], [0.0, np.pi / 2], arena)
+    d_ray, k_ray, _ = ideal_ultrasonic(p, y, th, arena, ray)
+    d_cone, k_cone, h_cone = ideal_ultrasonic(p, y, th, arena, cone)
+    assert k_ray[0, 0, 0] == HIT_WALL and d_ray[0, 0, 0] == pytest.approx(2.0)
+    assert k_cone[0, 0, 0] == HIT_COPTER and d_cone[0, 0, 0] == pytest.approx(0.85, abs=1e-12)
+    assert np.hypot(*(h_cone[0, 0, 0] - b)) == pytest.approx(0.15, abs=1e-12)
+
+
+@pytest.mark.parametrize("profile,sonar", [("default", {"schedule": "random_offset"}), ("seed", {}),
+                                           ("default", {"beam": "cone", "error": "gaussian",
+                                                        "schedule": "simultaneous"})])
+def test_same_seed_same_readings_any_batch_and_threads(profile, sonar):
+    cfg, arena, sp = setup(n=6, profile=profile, **sonar)
+    world = World(cfg)
+    state, _ = world.rollout(world.init(64, seed=11), 20, "random_walk", record=False)
+    full = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
+    down = down_readings(state.pos, sp, 11, state.env_ids, 20)
+    for k in (0, 17, 63):
+        one = state.select([k])
+        assert one.env_ids.tolist() == [k]
+        r1 = ultrasonic_readings(one.pos, one.yaw, one.theta, arena, sp, 11, one.env_ids, 20)
+        np.testing.assert_array_equal(r1[0], full[k])
+        np.testing.assert_array_equal(down_readings(one.pos, sp, 11, one.env_ids, 20)[0], down[k])
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        again = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_array_equal(again, full)
+    other = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 12, state.env_ids, 20)
+    if sp.error != 0:
+        assert not np.array_equal(other, full)
+
+
+def test_trajectory_equals_per_step_readings():
+    cfg, arena, sp = setup(n=4)
+    world = World(cfg)
+    state = world.init(3, seed=4)
+    _, traj = world.rollout(state, 6, "random_walk")
+    out, dist, kind, hit = ultrasonic_from_trajectory(traj, arena, sp, 4, state.env_ids, 0, return_ideal=True)
+    assert out.shape == (6, 3, 4, 4) and hit.shape == (6, 3, 4, 4, 2)
+    for t in range(6):
+        r = ultrasonic_readings(traj.pose[t, ..., :2], traj.pose[t, ..., 2], traj.theta[t], arena, sp, 4,
+                                state.env_ids, t)
+        np.testing.assert_array_equal(out[t], r)
+
+
+def test_down_sonar():
+    _, _, sp = setup(n=3, error="none")
+    pos = np.zeros((2, 3, 2))
+    np.testing.assert_array_equal(down_readings(pos, sp, 0, [0, 1], 0), np.full((2, 3), 0.6))
+    _, _, sp = setup(n=3)
+    d = down_readings(np.zeros((500, 3, 2)), sp, 0, np.arange(500), 0)
+    assert np.all(d <= 0.6 + rayleigh_std(0.05)) and d.mean() < 0.6  # default runs short
