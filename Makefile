@@ -3,7 +3,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+# numba invalidates a cached kernel only when its own file changes, not when a kernel it calls
+# (in another module) does: key the on-disk cache by a hash of the package sources.
+SRC_HASH := $(shell cat $$(find finkensim -name '*.py' | sort) | sha1sum | cut -c1-12)
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(SRC_HASH)
 export MPLBACKEND ?= Agg
 
 .PHONY: demo test bench bench-peers clean venv

@@ -17,7 +17,8 @@ positive = lower edge swings into the arena) follows a damped second-order model
 
 d is the distance from the plate's rest line to the nearest copter body. The sensors see
 the plate surface at flight height, displaced into the arena by ``lever · sin θ`` with
-``lever = hinge_height − altitude``.
+``lever = hinge_height − altitude``. A plate cannot swing through a copter: θ is capped where
+that surface would touch the nearest body, lever · sin θ ≤ d.
 
 Modelling choices (see README "Wall model"): the report's 40 kg plate cannot hang at 30°
 against a 15 N·m motor (it needs ≈ 98 N·m), so the default plate is a 0.3 kg curtain strip
@@ -120,19 +121,36 @@ def hinge_substeps(theta, omega, integ, target, active, hp, dt):
 
 
 @njit(cache=True, inline="always")
-def walls_step_env(theta, omega, integ, dist, hp, dt):
-    """One environment: update every plate (S,) in place from nearest-body distances ``dist`` (S,) m."""
+def contact_angle(d, lever):
+    """Largest angle (rad) at which the plate surface at flight height (moved lever·sin θ inward)
+    still clears a copter body d (m) away from the rest line: asin(min(1, d / lever))."""
+    if lever <= 0.0 or d >= lever:
+        return 0.5 * np.pi
+    return np.arcsin(d / lever)
+
+
+@njit(cache=True, inline="always")
+def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
+    """One environment: update every plate (S,) in place from nearest-body distances ``dist`` (S,) m.
+
+    A curtain cannot swing through a copter: the angle is capped at :func:`contact_angle`, and
+    a plate stopped there loses its inward angular velocity.
+    """
     for s in range(theta.shape[0]):
         active = dist[s] < hp.threshold
         tgt = target_angle(dist[s], hp.threshold, hp.max_amplitude) if active else 0.0
         theta[s], omega[s], integ[s] = hinge_substeps(theta[s], omega[s], integ[s], tgt, active, hp, dt)
+        cap = contact_angle(dist[s], lever)
+        if theta[s] > cap:
+            theta[s] = cap
+            omega[s] = min(omega[s], 0.0)
 
 
 @njit(cache=True, parallel=True)
-def walls_step(theta, omega, integ, dist, hp, dt):
-    """Batched hinge update in place. theta, omega, integ, dist: (B, S)."""
+def walls_step(theta, omega, integ, dist, hp, lever, dt):
+    """Batched hinge update in place. theta, omega, integ, dist: (B, S); lever (m) as in :class:`Arena`."""
     for b in prange(theta.shape[0]):
-        walls_step_env(theta[b], omega[b], integ[b], dist[b], hp, dt)
+        walls_step_env(theta[b], omega[b], integ[b], dist[b], hp, lever, dt)
 
 
 @dataclass(frozen=True)

@@ -328,13 +328,25 @@ class Config:
         return out
 
     def replace(self, updates: Mapping[str, Any]) -> "Config":
-        """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``."""
+        """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``.
+
+        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults
+        take the new profile's; values set away from them are kept.
+        """
+        profile = updates.get("profile", self.profile)
+        base = Config(profile).to_dict() if profile != self.profile else None
         data = self.to_dict()
+        if base is not None:
+            old = Config(self.profile).to_dict()
+            for name in SECTIONS:
+                for key, value in data[name].items():
+                    if value == old[name][key]:
+                        data[name][key] = base[name][key]
+            data["profile"] = profile
         for dotted, value in updates.items():
-            section, _, key = dotted.partition(".")
             if dotted == "profile":
-                data["profile"] = value
                 continue
+            section, _, key = dotted.partition(".")
             if not key:
                 raise ConfigError(f"{dotted!r}: expected a dotted key 'section.key'")
             _check_key(section, key)
@@ -383,14 +395,19 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
         return Config()
     if isinstance(source, Mapping):
         return config_from_dict(source)
-    text = None
-    path = Path(source) if not (isinstance(source, str) and "\n" in source) else None
-    if path is not None:
-        if not path.exists():
-            raise ConfigError(f"config file {str(path)!r} does not exist")
-        text = path.read_text()
+    path = Path(source)
+    try:
+        is_file = path.is_file()
+    except OSError:  # e.g. a long TOML text is not a valid file name
+        is_file = False
+    looks_like_toml = isinstance(source, str) and ("\n" in source or "=" in source or source.lstrip().startswith("["))
+    if looks_like_toml and not is_file:
+        path, text = None, str(source)
     else:
-        text = str(source)
+        if not is_file:
+            raise ConfigError(f"config file {str(path)!r} does not exist" if not path.exists()
+                              else f"config file {str(path)!r} is not a file")
+        text = path.read_text()
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -9,8 +9,9 @@ Per copter and step (dt), with v the world-frame velocity (m/s) and ω the yaw r
     ω     ← same lag toward clip(ω_cmd, ±max_yaw_rate) with τ_ψ;  ψ ← wrap(ψ + ω dt)
 
 A copter whose body would cross a wall is put back on the wall (centre at least one radius
-inside), loses its velocity component into the wall, and a wall contact is counted when the
-touch begins. Two copters whose bodies overlap (centre distance < 2 radius) are in collision;
+inside) and loses its velocity component into the wall; the recorded acceleration includes that
+stop. A wall contact is counted when the touch begins; it ends once the body is more than
+``WALL_RELEASE_GAP`` (2 cm) away again. Two copters whose bodies overlap (centre distance < 2 radius) are in collision;
 a collision is counted for each copter when its overlap begins. Overlaps are counted, not
 resolved (the kinematic model has no contact forces).
 """
@@ -58,16 +59,22 @@ def _lag_factor(tau, dt):
 @njit(cache=True, inline="always")
 def wrap_angle(a):
     """Wrap an angle (rad) to [−π, π)."""
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    w = (a + np.pi) % (2.0 * np.pi) - np.pi
+    if w >= np.pi:  # the float remainder can round up to 2π for a + π just below 0
+        w -= 2.0 * np.pi
+    return w
 
 
 @njit(cache=True, inline="always")
 def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
     """Advance one copter in place. pos, vel, acc, cmd_v: (2,) arrays; yaw, yaw_rate, cmd_w: floats.
 
-    Writes the applied world-frame acceleration into ``acc`` (m/s², before wall contact).
-    Returns (yaw, yaw_rate, touching_wall).
+    Writes the world-frame acceleration of the step into ``acc`` (m/s²): the velocity change over
+    dt including the stop at a wall, which an accelerometer would feel. Returns (yaw, yaw_rate,
+    gap_to_wall) where gap_to_wall (m) is the smallest distance from the body to a wall (0 = touching).
     """
+    v0x = vel[0]
+    v0y = vel[1]
     cx, cy = cmd_v[0], cmd_v[1]
     sp = np.sqrt(cx * cx + cy * cy)
     if sp > cp.max_speed:
@@ -80,42 +87,50 @@ def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
     if an > cp.max_accel:
         ax *= cp.max_accel / an
         ay *= cp.max_accel / an
-    acc[0] = ax
-    acc[1] = ay
     vel[0] += ax * dt
     vel[1] += ay * dt
     pos[0] += vel[0] * dt
     pos[1] += vel[1] * dt
     r = cp.radius
-    touching = False
+    clamped = False
     if pos[0] < r:
         pos[0] = r
         vel[0] = max(vel[0], 0.0)
-        touching = True
+        clamped = True
     elif pos[0] > cp.width - r:
         pos[0] = cp.width - r
         vel[0] = min(vel[0], 0.0)
-        touching = True
+        clamped = True
     if pos[1] < r:
         pos[1] = r
         vel[1] = max(vel[1], 0.0)
-        touching = True
+        clamped = True
     elif pos[1] > cp.length - r:
         pos[1] = cp.length - r
         vel[1] = min(vel[1], 0.0)
-        touching = True
+        clamped = True
+    acc[0] = (vel[0] - v0x) / dt
+    acc[1] = (vel[1] - v0y) / dt
+    # exactly 0 when clamped: W − (W − r) − r need not round to 0
+    gap = 0.0 if clamped else min(min(pos[0], cp.width - pos[0]), min(pos[1], cp.length - pos[1])) - r
     w_cmd = min(cp.max_yaw_rate, max(-cp.max_yaw_rate, cmd_w))
     yaw_rate += (w_cmd - yaw_rate) * _lag_factor(cp.yaw_tau, dt)
     yaw = wrap_angle(yaw + yaw_rate * dt)
-    return yaw, yaw_rate, touching
+    return yaw, yaw_rate, max(0.0, gap)
+
+
+# A wall contact begins when the body touches a wall and ends only once it is this far away again,
+# so a copter sliding along a wall with a wobbling command counts one contact, not one per wobble.
+WALL_RELEASE_GAP = 0.02  # m
 
 
 @njit(cache=True, inline="always")
-def update_contacts_env(pos, radius, touching, in_wall, wall_contacts, in_collision, collisions):
+def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collision, collisions):
     """Count contact onsets for one environment (N copters) in place.
 
-    touching (N,) bool: copter at a wall this step. Updates in_wall/in_collision flags and
-    increments wall_contacts/collisions (N,) where a contact begins.
+    wall_gap (N,) m: body-to-wall distance this step (0 = touching). A wall contact begins at
+    gap 0 and ends when the gap exceeds :data:`WALL_RELEASE_GAP`. Updates in_wall/in_collision
+    flags and increments wall_contacts/collisions (N,) where a contact begins.
     """
     N = pos.shape[0]
     lim2 = (2.0 * radius) ** 2
@@ -131,6 +146,9 @@ def update_contacts_env(pos, radius, touching, in_wall, wall_contacts, in_collis
         if overlap and not in_collision[i]:
             collisions[i] += 1
         in_collision[i] = overlap
-        if touching[i] and not in_wall[i]:
-            wall_contacts[i] += 1
-        in_wall[i] = touching[i]
+        if wall_gap[i] <= 0.0:
+            if not in_wall[i]:
+                wall_contacts[i] += 1
+            in_wall[i] = True
+        elif wall_gap[i] > WALL_RELEASE_GAP:
+            in_wall[i] = False

@@ -14,6 +14,7 @@ to a single run with ``env_ids=[k]``.
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields, replace
 from typing import Callable
 
@@ -101,25 +102,25 @@ class Trajectory:
 
 @njit(cache=True, inline="always")
 def step_env(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-             collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, dt, dist_buf, touching_buf):
+             collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt, dist_buf, gap_buf):
     """Advance one environment by dt in place: copters move, contacts are counted, plates respond."""
     for n in range(pos.shape[0]):
-        yaw[n], yaw_rate[n], touching_buf[n] = move_copter(
+        yaw[n], yaw_rate[n], gap_buf[n] = move_copter(
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
-    update_contacts_env(pos, cp.radius, touching_buf, in_wall, wall_contacts, in_collision, collisions)
+    update_contacts_env(pos, cp.radius, gap_buf, in_wall, wall_contacts, in_collision, collisions)
     nearest_body_distance_env(seg_a, seg_b, pos, cp.radius, dist_buf)
-    walls_step_env(theta, omega, integ, dist_buf, hp, dt)
+    walls_step_env(theta, omega, integ, dist_buf, hp, lever, dt)
 
 
 @njit(cache=True, parallel=True)
 def _step_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-                collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, dt):
+                collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt):
     for b in prange(pos.shape[0]):
         dist_buf = np.empty(seg_a.shape[0])
-        touching = np.empty(pos.shape[1], dtype=np.bool_)
+        touching = np.empty(pos.shape[1])
         step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
                  in_collision[b], wall_contacts[b], collisions[b], cmd_v[b], cmd_w[b], cp, hp, seg_a, seg_b,
-                 dt, dist_buf, touching)
+                 lever, dt, dist_buf, touching)
 
 
 CONTROLLER_HOVER = 0
@@ -128,14 +129,14 @@ CONTROLLER_RANDOM_WALK = 1
 
 @njit(cache=True, parallel=True)
 def _rollout_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-                   collisions, seed, env_ids, step0, n_steps, controller, rw, cp, hp, seg_a, seg_b, dt,
+                   collisions, seed, env_ids, step0, n_steps, controller, rw, cp, hp, seg_a, seg_b, lever, dt,
                    rec_pose, rec_vel, rec_acc, rec_yaw_rate, rec_theta):
     """T steps of B environments with a built-in controller; records into rec_* when they have T rows."""
     B, N, _ = pos.shape
     record = rec_pose.shape[0] == n_steps
     for b in prange(B):
         dist_buf = np.empty(seg_a.shape[0])
-        touching = np.empty(N, dtype=np.bool_)
+        touching = np.empty(N)
         cmd_v = np.zeros((N, 2))
         cmd_w = np.zeros(N)
         for t in range(n_steps):
@@ -155,7 +156,7 @@ def _rollout_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, i
                 random_walk_env(pos[b], seed, env_ids[b], step0 + t, rw, cmd_v, cmd_w)
             step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
                      in_collision[b], wall_contacts[b], collisions[b], cmd_v, cmd_w, cp, hp, seg_a, seg_b,
-                     dt, dist_buf, touching)
+                     lever, dt, dist_buf, touching)
 
 
 @njit(cache=True, parallel=True)
@@ -230,6 +231,15 @@ class World:
         pos = np.zeros((B, N, 2))
         yaw0 = np.zeros((B, N))
         _init_positions(seed, env_ids, N, c.arena.width, c.arena.length, r, c.copters.min_separation, pos, yaw0)
+        if N > 1 and positions is None:
+            d = np.sqrt(((pos[:, :, None, :] - pos[:, None, :, :]) ** 2).sum(-1)) if N <= 200 else None
+            if d is not None:
+                d[:, np.arange(N), np.arange(N)] = np.inf
+                closest = float(d.min())
+                if closest < c.copters.min_separation:
+                    warnings.warn(f"copters.min_separation = {c.copters.min_separation} m could not be met for {N} "
+                                  f"copters in a {c.arena.width} x {c.arena.length} m arena; the closest start pair "
+                                  f"is {closest:.3f} m apart", RuntimeWarning, stacklevel=2)
         if positions is not None:
             positions = np.asarray(positions, dtype=float)
             if positions.shape != (B, N, 2):
@@ -254,15 +264,23 @@ class World:
 
     def _check_commands(self, state, cmd_vel, cmd_yaw_rate):
         B, N = state.n_envs, state.n_copters
-        cmd_vel = np.ascontiguousarray(np.broadcast_to(np.asarray(cmd_vel, dtype=float), (B, N, 2))) \
-            if np.ndim(cmd_vel) else None
-        if cmd_vel is None or cmd_vel.shape != (B, N, 2):
-            raise ConfigError(f"cmd_vel: expected shape (B, N, 2) = ({B}, {N}, 2) m/s")
-        if cmd_yaw_rate is None:
-            cmd_yaw_rate = np.zeros((B, N))
-        cmd_yaw_rate = np.ascontiguousarray(np.broadcast_to(np.asarray(cmd_yaw_rate, dtype=float), (B, N)))
-        if not (np.all(np.isfinite(cmd_vel)) and np.all(np.isfinite(cmd_yaw_rate))):
-            raise ConfigError("cmd_vel / cmd_yaw_rate contain NaN or inf: expected finite commands")
+
+        def as_array(name, value, shape, unit):
+            try:
+                arr = np.array(np.broadcast_to(np.asarray(value, dtype=float), shape), dtype=np.float64, order="C")
+            except (ValueError, TypeError):
+                got = np.shape(value) if np.ndim(value) or np.isscalar(value) else type(value).__name__
+                raise ConfigError(f"{name} has shape {got}: expected {shape} (B, N{', 2' if len(shape) == 3 else ''}) "
+                                  f"{unit} or broadcastable to it") from None
+            if not np.all(np.isfinite(arr)):
+                raise ConfigError(f"{name} contains NaN or inf: expected finite commands in {unit}")
+            return arr
+
+        if np.ndim(cmd_vel) == 0 or np.shape(cmd_vel)[-1] != 2:
+            raise ConfigError(f"cmd_vel has shape {np.shape(cmd_vel)}: expected (B, N, 2) = ({B}, {N}, 2) m/s "
+                              "(a velocity vector per copter) or broadcastable to it")
+        cmd_vel = as_array("cmd_vel", cmd_vel, (B, N, 2), "m/s")
+        cmd_yaw_rate = as_array("cmd_yaw_rate", 0.0 if cmd_yaw_rate is None else cmd_yaw_rate, (B, N), "rad/s")
         return cmd_vel, cmd_yaw_rate
 
     def step(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> WorldState:
@@ -280,7 +298,7 @@ class World:
         s = state
         _step_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
                     s.wall_contacts, s.collisions, cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params,
-                    self.arena.seg_a, self.arena.seg_b, self.dt)
+                    self.arena.seg_a, self.arena.seg_b, self.arena.lever, self.dt)
 
     def rollout(self, state: WorldState, n_steps: int, controller: str | Callable | None = None,
                 record: bool = True) -> tuple[WorldState, Trajectory | None]:
@@ -316,7 +334,7 @@ class World:
             _rollout_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall,
                            s.in_collision, s.wall_contacts, s.collisions, s.seed, s.env_ids, s.step, T,
                            codes[controller], self.random_walk_params, self.copter_params, self.hinge_params,
-                           self.arena.seg_a, self.arena.seg_b, self.dt, rec["pose"], rec["vel"], rec["acc"],
+                           self.arena.seg_a, self.arena.seg_b, self.arena.lever, self.dt, rec["pose"], rec["vel"], rec["acc"],
                            rec["yaw_rate"], rec["theta"])
             new = replace(new, step=new.step + T)
         traj = None

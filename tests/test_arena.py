@@ -132,7 +132,7 @@ def _run_plate(cfg, dist, seconds, theta0=0.0):
     d = np.full((1, 1), float(dist))
     out = [theta0]
     for _ in range(int(round(seconds / dt))):
-        walls_step(th, om, ig, d, a.hinge, dt)
+        walls_step(th, om, ig, d, a.hinge, a.lever, dt)
         out.append(th[0, 0])
     return np.arange(len(out)) * dt, np.array(out)
 
@@ -231,7 +231,7 @@ def test_walls_step_matches_naive(dist, theta, omega, integ, mass, substeps, pid
     shape = (2, 3)
     arrays = [np.array(v, dtype=float).reshape(shape) for v in (theta, omega, integ, dist)]
     th, om, ig, d = (x.copy() for x in arrays)
-    walls_step(th, om, ig, d, a.hinge, cfg.simulation.dt)
+    walls_step(th, om, ig, d, a.hinge, a.lever, cfg.simulation.dt)
     p = naive.params(cfg)
     nth, nom, nig = naive.hinge_step(*arrays[:3], arrays[3], p)
     np.testing.assert_allclose(th, nth, rtol=1e-9, atol=1e-12)

@@ -165,11 +165,6 @@ def test_config_error_is_a_value_error():
     assert issubclass(ConfigError, ValueError)
 
 
-@pytest.mark.xfail(strict=True, raises=ConfigError, reason=(
-    "BUG finkensim/config.py load_config(): a str without a newline is always taken as a path, so a "
-    "one-line TOML string such as 'profile = \"seed\"' raises \"config file 'profile = \\\"seed\\\"' does not "
-    "exist\" although the docstring promises TOML strings. Fix: treat a str as TOML when it is not an existing "
-    "path and parses as TOML (or add an explicit load_toml_string / text= argument)."))
 def test_one_line_toml_string():
     assert load_config('profile = "seed"') == Config("seed")
 
@@ -220,11 +215,6 @@ def test_replace():
         base.replace({"copters.n": -1})
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "BUG finkensim/config.py Config.replace(): replace({'profile': 'seed'}) rebuilds from to_dict(), whose "
-    "every value counts as explicit (_explicit=True), so the result is labelled profile='seed' but keeps all "
-    "default values (walls.plate_mass 0.3, sonar.error 'rayleigh') and != Config('seed'). Fix: on a profile "
-    "change, re-apply the new profile to the keys that were not set explicitly (or reject profile in replace)."))
 def test_replace_profile_applies_the_profile():
     cfg = Config().replace({"profile": "seed"})
     assert cfg.walls.plate_mass == 40.0

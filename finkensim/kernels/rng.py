@@ -6,7 +6,7 @@ reproduce B separate runs bit for bit, and lets a parallel ``prange`` loop draw 
 
 The hash is SplitMix64's finaliser (Steele, Lea & Flood 2014) applied to a chained key;
 it passes BigCrush as a counter-based generator when fed distinct counters. Uniforms use
-the top 53 bits, centred, so they lie strictly inside (0, 1) and ``log(u)`` is finite.
+the top 52 bits, centred, so they lie strictly inside (0, 1) and ``log(u)`` is finite.
 
 ``stream`` separates independent consumers (commands, sonar, ranging, ...); the constants
 below are the registry. Add a new constant rather than reusing one.
@@ -33,9 +33,9 @@ _M2 = np.uint64(0x94D049BB133111EB)
 _S30 = np.uint64(30)
 _S27 = np.uint64(27)
 _S31 = np.uint64(31)
-_S11 = np.uint64(11)
+_S12 = np.uint64(12)
 _ONE = np.uint64(1)
-_INV53 = 1.0 / 9007199254740992.0  # 2**-53
+_INV52 = 1.0 / 4503599627370496.0  # 2**-52
 
 
 @njit(cache=True, inline="always")
@@ -61,9 +61,12 @@ def counter_key(seed, env, step, copter, stream):
 
 @njit(cache=True, inline="always")
 def uniform(key, index):
-    """The ``index``-th uniform of ``key``: a float64 strictly inside (0, 1)."""
-    z = mix64(key + (np.uint64(index) + _ONE) * _GOLDEN)
-    return (np.float64(z >> _S11) + 0.5) * _INV53
+    """The ``index``-th uniform of ``key``: a float64 strictly inside (0, 1).
+
+    The top 52 bits plus ½ keep the result exactly representable, so it never rounds to 0 or 1.
+    """
+    z = mix64(np.uint64(key) + (np.uint64(index) + _ONE) * _GOLDEN)
+    return (np.float64(z >> _S12) + 0.5) * _INV52
 
 
 @njit(cache=True, inline="always")

@@ -5,7 +5,7 @@ Everything is done on ``uint64`` *arrays*: NumPy array arithmetic wraps modulo 2
 indices are reinterpreted as uint64 (two's complement), as ``np.uint64(i)`` does inside numba.
 
     key = mix(mix(mix(mix(mix(seed + G) ^ (env + G)) ^ (step + G)) ^ (copter + G)) ^ (stream + G))
-    uniform(key, i) = ((mix(key + (i + 1)·G) >> 11) + 0.5) · 2**-53
+    uniform(key, i) = ((mix(key + (i + 1)·G) >> 12) + 0.5) · 2**-52
     normal(key, i)  = sqrt(−2 ln uniform(key, 2i)) · cos(2π · uniform(key, 2i + 1))
 
 with G the golden-ratio constant and ``mix`` SplitMix64's finaliser.
@@ -49,7 +49,7 @@ def uniform(key, index) -> np.ndarray:
     """The ``index``-th uniform of ``key`` (both broadcast), strictly inside (0, 1)."""
     with np.errstate(over="ignore"):
         z = mix64(as_u64(key) + (as_u64(index) + np.uint64(1)) * GOLDEN)
-    return ((z >> np.uint64(11)).astype(np.float64) + 0.5) * 2.0**-53
+    return ((z >> np.uint64(12)).astype(np.float64) + 0.5) * 2.0**-52
 
 
 def normal(key, index) -> np.ndarray:

@@ -39,6 +39,8 @@ def params(cfg):
         inertia=w.plate_mass * w.plate_length**2 / 3.0,  # rod hinged at one end
         gravity_torque=w.plate_mass * GRAVITY * w.plate_length / 2.0,  # times sin(theta)
         substeps=w.substeps,
+        lever=max(0.0, w.hinge_height - a.altitude),  # surface at flight height moves lever·sin(theta)
+        release_gap=0.02,  # m, a wall contact ends once the body is this far from the wall
     )
 
 
@@ -67,8 +69,12 @@ def scale_to_norm(v, limit):
 
 
 def move_copters(pos, vel, yaw, yaw_rate, cmd_v, cmd_w, p):
-    """New (pos, vel, acc, yaw, yaw_rate, touching) for all copters (B, N, ...)."""
+    """New (pos, vel, acc, yaw, yaw_rate, wall_gap) for all copters (B, N, ...).
+
+    acc is the velocity change over dt including the stop at a wall; wall_gap (m) the body-to-wall distance.
+    """
     dt = p.dt
+    vel0 = vel
     cmd = scale_to_norm(cmd_v, p.max_speed)
     acc = scale_to_norm((cmd - vel) * lag_factor(p.velocity_tau, dt) / dt, p.max_accel)
     vel = vel + acc * dt
@@ -78,14 +84,18 @@ def move_copters(pos, vel, yaw, yaw_rate, cmd_v, cmd_w, p):
     lo = np.array([r, r])
     hi = np.array([p.width - r, p.length - r])
     below, above = pos < lo, pos > hi
-    touching = np.any(below | above, axis=-1)
     pos = np.clip(pos, lo, hi)
     vel = np.where(below, np.maximum(vel, 0.0), vel)
     vel = np.where(above, np.minimum(vel, 0.0), vel)
+    acc = (vel - vel0) / dt
+    wall_gap = np.maximum(0.0, np.minimum(np.minimum(pos[..., 0], p.width - pos[..., 0]),
+                                          np.minimum(pos[..., 1], p.length - pos[..., 1])) - r)
+    wall_gap = np.where(np.any(below | above, axis=-1), 0.0, wall_gap)  # clamped = touching, exactly
     w_cmd = np.clip(cmd_w, -p.max_yaw_rate, p.max_yaw_rate)
     yaw_rate = yaw_rate + (w_cmd - yaw_rate) * lag_factor(p.yaw_tau, dt)
     yaw = np.mod(yaw + yaw_rate * dt + np.pi, 2.0 * np.pi) - np.pi
-    return pos, vel, acc, yaw, yaw_rate, touching
+    yaw = np.where(yaw >= np.pi, yaw - 2.0 * np.pi, yaw)
+    return pos, vel, acc, yaw, yaw_rate, wall_gap
 
 
 def overlapping(pos, radius):
@@ -128,6 +138,12 @@ def hinge_step(theta, omega, integ, dist, p):
         over, under = theta > 0.5 * np.pi, theta < -0.5 * np.pi
         theta = np.clip(theta, -0.5 * np.pi, 0.5 * np.pi)
         omega = np.where(over, np.minimum(omega, 0.0), np.where(under, np.maximum(omega, 0.0), omega))
+    # a curtain cannot swing through a copter: lever·sin(theta) <= distance to the nearest body
+    cap = np.where((p.lever > 0.0) & (dist < p.lever), np.arcsin(np.minimum(1.0, dist / max(p.lever, 1e-300))),
+                   0.5 * np.pi)
+    capped = theta > cap
+    theta = np.where(capped, cap, theta)
+    omega = np.where(capped, np.minimum(omega, 0.0), omega)
     return theta, omega, integ
 
 
@@ -137,16 +153,18 @@ def world_step(cfg, state, cmd_vel, cmd_yaw_rate=None):
     B, N = state.pos.shape[:2]
     cmd_v = np.broadcast_to(np.asarray(cmd_vel, dtype=float), (B, N, 2))
     cmd_w = np.zeros((B, N)) if cmd_yaw_rate is None else np.broadcast_to(np.asarray(cmd_yaw_rate, float), (B, N))
-    pos, vel, acc, yaw, yaw_rate, touching = move_copters(state.pos, state.vel, state.yaw, state.yaw_rate,
+    pos, vel, acc, yaw, yaw_rate, wall_gap = move_copters(state.pos, state.vel, state.yaw, state.yaw_rate,
                                                           cmd_v, cmd_w, p)
     overlap = overlapping(pos, p.radius)
+    touching = wall_gap <= 0.0
     wall_contacts = state.wall_contacts + (touching & ~state.in_wall)
+    in_wall = np.where(touching, True, np.where(wall_gap > p.release_gap, False, state.in_wall))
     collisions = state.collisions + (overlap & ~state.in_collision)
     seg_a, seg_b = wall_segments(cfg)
     dist = segment_copter_distances(seg_a, seg_b, pos, p.radius)
     theta, omega, integ = hinge_step(state.theta, state.omega, state.integ, dist, p)
     return replace(
         state, pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate, theta=theta, omega=omega, integ=integ,
-        in_wall=touching, in_collision=overlap, wall_contacts=wall_contacts, collisions=collisions,
+        in_wall=in_wall, in_collision=overlap, wall_contacts=wall_contacts, collisions=collisions,
         step=state.step + 1, env_ids=state.env_ids.copy(),
     )
