@@ -1,6 +1,6 @@
 """The ``finkensim`` command line.
 
-    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif]
+    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--ideal]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -66,6 +66,8 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="random seed (default: simulation.seed of the scenario)")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.add_argument("--ideal", action="store_true",
+                   help="also store error-free sensor values in the log (extras *_ideal, ultrasonic_hit_type)")
     p.set_defaults(func=cmd_run)
 
 
@@ -115,7 +117,7 @@ def cmd_run(args) -> int:
 
     t0 = time.perf_counter()
     try:
-        log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed)
+        log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     t_sim = time.perf_counter() - t0

@@ -184,14 +184,28 @@ class SimulationConfig(_Section):
 
 @dataclass(frozen=True)
 class BehaviourConfig(_Section):
-    """Controller driving the copters in `finkensim run`."""
+    """Controller driving the copters (issue: swarm behaviours). Each uses the copter's own sensors only,
+    except ``random_walk``/``hover``, which are open-loop."""
 
     _section = "behaviour"
-    kind: str = _f("random_walk", choices=("random_walk", "hover"))
+    kind: str = _f("random_walk", choices=("random_walk", "hover", "attraction_repulsion"))
     speed: float = _f(0.3, "m/s", 0.0, 50.0, doc="random walk: cruise speed")
-    redraw_steps: int = _f(20, "", 1, 10**9, doc="random walk: steps between new random headings")
+    redraw_steps: int = _f(20, "", 1, 10**9, doc="steps between new random headings / random targets")
     wall_margin: float = _f(0.4, "m", 0.0, 100.0, doc="random walk: steer inward when closer than this to a wall")
     yaw_rate_deg: float = _f(20.0, "deg/s", 0.0, 3600.0, doc="random walk: largest random yaw rate command")
+    ar_a: float = _f(1.0, "", 0.0, 1e6, doc="attraction-repulsion: attraction a in p (a - b exp(-|p|^2/c))")
+    ar_b: float = _f(4.0, "", 0.0, 1e6, doc="attraction-repulsion: repulsion b")
+    ar_c: float = _f(1.5, "m^2", 0.0, 1e6, lo_open=True, doc="attraction-repulsion: repulsion range c")
+    w_c: float = _f(0.8, "", 0.0, 1e6, doc="weight of the swarm term")
+    w_t: float = _f(0.2, "", 0.0, 1e6, doc="weight of the random target term")
+    target_distance: float = _f(1.0, "m", 0.0, 1e6, doc="length of the random target offset, redrawn every redraw_steps")
+    gain: float = _f(1.0, "1/s", 0.0, 1e6, doc="velocity command = gain * displacement, then speed-limited")
+    wall_check: str = _f("none", choices=("none", "per_reading", "sequence"),
+                         doc="virtual-ranging plausibility check of sonar readings")
+    wall_check_epsilon: float = _f(0.286, "m", 0.0, 100.0, doc="a sonar reading matching no ranging reading within this is a wall")
+    sequence_fail_count: int = _f(5, "", 1, 10**6, doc="sequence check: consecutive failures before a sonar is judged to see a wall")
+    sequence_release_distance: float = _f(0.3, "m", 0.0, 100.0, doc="sequence check: release after moving this far (IMU dead reckoning)")
+    sequence_release_angle_deg: float = _f(30.0, "deg", 0.0, 360.0, doc="sequence check: release after turning this much (gyro)")
 
 
 @dataclass(frozen=True)

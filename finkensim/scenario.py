@@ -84,20 +84,70 @@ def load_scenario(source: str | Path | Mapping[str, Any] | Config | None = None)
     return load_config(source)
 
 
-def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState) -> dict[str, Any]:
+def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState, ideal: bool = False) -> dict[str, Any]:
     """Sensor readings of one simulated flight, as keyword arguments of :class:`FlightLog`.
 
     The one place where sensor models join the flight log. ``traj`` holds the recorded states of
-    the single environment (``traj.pose`` (T, 1, N, 3), ``vel``/``acc`` (T, 1, N, 2), ``yaw_rate``
-    (T, 1, N), ``theta`` (T, 1, S): everything a sonar, ranging or IMU model needs); ``state0`` is
-    the initial state, whose ``seed`` and ``env_ids`` key the sensors' random streams.
+    the single environment (``traj.pose`` (T, 1, N, 3), ``acc`` (T, 1, N, 2), ``yaw_rate`` (T, 1, N),
+    ``theta`` (T, 1, S)); sample k uses the random numbers of step k, keyed by ``state0.seed`` and
+    ``state0.env_ids``, exactly as an online sensor would at that step.
 
-    Return any of ``ultrasonic``, ``ultrasonic_yaw``, ``ultrasonic_offset``, ``ranging``,
-    ``imu_acc``, ``imu_gyro`` (each block all-or-nothing, see ``spec/flightlog.md``), plus
-    optionally ``meta`` and ``extras`` dicts, which are merged into the log's own.
-    Sensors are not modelled yet (sensor-model issue): no blocks.
+    Returns ``ultrasonic`` (T, N, 4) m with ``ultrasonic_yaw``/``ultrasonic_offset``; ``ranging``
+    (T, N, N) m; ``imu_acc`` (T, N, 2) m/s² and ``imu_gyro`` (T, N) rad/s; each only when its
+    ``enabled`` key is true. Extras: ``ultrasonic_down`` (T, N) m (down-facing sonar),
+    ``ranging_beacons`` (T, N, M) m and ``beacon_positions`` (M, 2) m when beacons are configured.
+    With ``ideal=True`` also the error-free values as extras ``<name>_ideal`` and the sonar hit
+    type ``ultrasonic_hit_type`` (T, N, 4; 0 none, 1 wall, 2 copter).
     """
-    return {}
+    from .sensors.imu import ImuModel, ideal_imu, imu_from_trajectory
+    from .sensors.ranging import RangingModel, ranging_readings
+    from .sensors.ultrasonic import SonarModel, down_readings, ultrasonic_from_trajectory
+
+    cfg, seed, env_ids = world.cfg, state0.seed, state0.env_ids
+    T, _, N, _ = traj.pose.shape
+    out: dict[str, Any] = {}
+    extras: dict[str, np.ndarray] = {}
+    if cfg.sonar.enabled:
+        sonar = SonarModel.from_config(cfg)
+        res = ultrasonic_from_trajectory(traj, world.arena, sonar, seed, env_ids, state0.step, return_ideal=ideal)
+        readings = res[0] if ideal else res
+        out["ultrasonic"] = np.ascontiguousarray(readings[:, 0])
+        out["ultrasonic_yaw"] = np.deg2rad(np.asarray(cfg.sonar.yaw_deg, dtype=float))
+        out["ultrasonic_offset"] = float(cfg.sonar.offset)
+        if ideal:
+            extras["ultrasonic_ideal"] = np.ascontiguousarray(res[1][:, 0])
+            extras["ultrasonic_hit_type"] = np.ascontiguousarray(res[2][:, 0]).astype(np.int64)
+        if cfg.sonar.down_enabled:
+            pos1 = np.zeros((1, N, 2))
+            extras["ultrasonic_down"] = np.stack(
+                [down_readings(pos1, sonar, seed, env_ids, state0.step + k)[0] for k in range(T)])
+    if cfg.ranging.enabled:
+        model = RangingModel.from_config(cfg.ranging)
+        beacons = np.asarray(cfg.ranging.beacons, dtype=float).reshape(-1, 2)
+        rows = np.empty((T, N, N + beacons.shape[0]))
+        for k in range(T):
+            pos = np.ascontiguousarray(traj.pose[k, :, :, :2])
+            rows[k] = ranging_readings(pos, beacons, seed, env_ids, state0.step + k, model)[0]
+        out["ranging"] = np.ascontiguousarray(rows[:, :, :N])
+        if beacons.shape[0]:
+            extras["ranging_beacons"] = np.ascontiguousarray(rows[:, :, N:])
+            extras["beacon_positions"] = beacons
+        if ideal:
+            extras["ranging_ideal"] = np.stack([
+                ranging_readings(np.ascontiguousarray(traj.pose[k, :, :, :2]), beacons, seed, env_ids,
+                                 state0.step + k, model, ideal=True)[0, :, :N] for k in range(T)])
+    if cfg.imu.enabled:
+        imu = ImuModel.from_config(cfg.imu, world.dt)
+        acc, gyro = imu_from_trajectory(traj, imu, seed, env_ids, state0.step)
+        out["imu_acc"] = np.ascontiguousarray(acc[:, 0])
+        out["imu_gyro"] = np.ascontiguousarray(gyro[:, 0])
+        if ideal:
+            acc_i, gyro_i = ideal_imu(traj.acc, traj.pose[..., 2], traj.yaw_rate)
+            extras["imu_acc_ideal"] = np.ascontiguousarray(acc_i[:, 0])
+            extras["imu_gyro_ideal"] = np.ascontiguousarray(gyro_i[:, 0])
+    if extras:
+        out["extras"] = extras
+    return out
 
 
 def _n_steps(duration: float, dt: float) -> int:
@@ -108,13 +158,14 @@ def _n_steps(duration: float, dt: float) -> int:
 
 
 def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, *, duration: float | None = None,
-                    seed: int | None = None) -> tuple[FlightLog, Trajectory, World]:
+                    seed: int | None = None, ideal: bool = False) -> tuple[FlightLog, Trajectory, World]:
     """Simulate one flight of the configured behaviour and build its flight log.
 
     Args:
         cfg: a Config, a TOML path or text, a dict, or None for the embedded default scenario.
         duration: flight length in s (default ``simulation.duration``).
         seed: random seed (default ``simulation.seed``).
+        ideal: also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
 
     One environment (B = 1, environment index 0) is placed at random and flown for
     round(duration / dt) steps by ``behaviour.kind`` in compiled code. The log has
@@ -165,7 +216,7 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     }
     extras: dict[str, np.ndarray] = {"wall_theta": np.ascontiguousarray(traj.theta[:, 0])}
 
-    blocks = dict(_sensor_blocks(world, traj, state0))
+    blocks = dict(_sensor_blocks(world, traj, state0, ideal=ideal))
     meta.update(blocks.pop("meta", {}) or {})
     extras.update(blocks.pop("extras", {}) or {})
 
