@@ -87,6 +87,10 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
             extra = f" (did you mean {hint[0]!r}?)" if hint else ""
             raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{extra}")
         return value
+    if t == "tuple[str, ...]":
+        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise ConfigError(f"{key} = {value!r}: expected a list of strings")
+        return tuple(value)
     if t.startswith("tuple"):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
@@ -262,6 +266,27 @@ class ImuConfig(_Section):
     gyro_bias_walk: float = _f(0.00002, "rad/s^2/sqrt(Hz)", 0.0, 100.0, doc="gyro bias random walk density")
 
 
+@dataclass(frozen=True)
+class GapConfig(_Section):
+    """Sim-to-real gap diagnosis (``finkensim gap``): predictive draws, statistics, effect search."""
+
+    _section = "gap"
+    tracking_sigma_xy: float = _f(-1.0, "m", -1.0, 1.0, doc="pose tracking noise; -1 = from the log's meta, else 0")
+    tracking_sigma_yaw: float = _f(-1.0, "rad", -1.0, 3.2, doc="yaw tracking noise; -1 = from the log's meta, else 0")
+    draws: int = _f(24, "", 4, 1000, doc="predictive draws per reading (ensemble size M)")
+    max_samples_per_flight: int = _f(3000, "", 10, 10**7, doc="time samples used per flight (evenly strided)")
+    fit_max_readings: int = _f(40000, "", 100, 10**8, doc="training readings per sensor used when fitting effects")
+    n_boot: int = _f(300, "", 50, 100000, doc="block-bootstrap replicates")
+    block_seconds: float = _f(10.0, "s", 0.0, 1e6, lo_open=True, doc="length of a bootstrap block (contiguous time)")
+    n_bins: int = _f(5, "", 2, 100, doc="quantile bins per continuous feature")
+    alpha: float = _f(0.05, "", 0.0, 0.5, lo_open=True, doc="false-discovery rate for locations and significance level")
+    margin: float = _f(0.02, "", 0.0, 10.0, doc="practical-significance margin on the normalised gap")
+    accept_gain: float = _f(0.1, "", 0.0, 1.0, doc="an effect is added when it removes at least this fraction of the current gap")
+    unexplained_shrink: float = _f(0.5, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained'")
+    tie_tolerance: float = _f(0.1, "", 0.0, 1.0, doc="effects whose held-out improvement is within this fraction of the best are near ties")
+    effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
+
+
 SECTIONS: dict[str, type] = {
     "arena": ArenaConfig,
     "walls": WallConfig,
@@ -271,6 +296,7 @@ SECTIONS: dict[str, type] = {
     "sonar": SonarConfig,
     "ranging": RangingConfig,
     "imu": ImuConfig,
+    "gap": GapConfig,
 }
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {

@@ -1,0 +1,499 @@
+"""Sim-to-real gap diagnosis: where the gap lies, which effect explains it, how far it shrinks.
+
+1. **Replay** every log (:mod:`.replay`) and build per-sensor tables of the real readings with
+   context features and a predictive ensemble of M draws per reading (:mod:`.predictive`).
+2. **Score**: per reading, CRPS(F, y) and the gap E|X − y| − E|X − X'| (zero-mean when the real
+   readings could have come from the model, :mod:`.scoring`). Each sensor's values are divided
+   by a fixed scale, the base model's mean absolute error E|X − y| on the training flights, so
+   sensors with different units share one dimensionless score; ranging adds the Brier score of
+   missing readings. The overall score is the mean over sensors of the per-reading mean.
+3. **Where**: per sensor, channel and feature, quantile bins with block-bootstrap CIs, ranked by
+   gap, Benjamini–Hochberg across all bins.
+4. **Which**: fit every catalogued effect (:mod:`.effects`) on the training flights, score it on
+   held-out flights; greedy forward selection adds the best while it removes a significant share
+   of the remaining held-out gap.
+5. **Verdict** per ``spec/gap-report.md``.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy import optimize
+
+from ..config import Config
+from ..flightlog import FlightLog
+from . import effects as fx
+from .predictive import ImuTable, ModelParams, RangingTable, SonarTable
+from .replay import GapInputError, prepare_flights
+from .scoring import brier, brier_gap, ensemble_terms
+from .stats import BlockBootstrap, fdr_significant
+
+SENSORS = ("ultrasonic", "ranging", "imu")
+DISCRETE_FEATURES = {"hit_type", "neighbor_in_beam", "axis"}
+
+
+@dataclass
+class FitResult:
+    name: str
+    values: dict
+    params: ModelParams
+    score_train: float
+    score_heldout: float = math.nan
+    gap_train: float = math.nan
+    gap_heldout: float = math.nan
+    rows_score: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out score
+
+
+class Diagnosis:
+    """Holds the prepared flights, tables and row sets; evaluates models; runs the search.
+
+    Args:
+        logs: flight logs; names: their names (file names) in the same order.
+        cfg: simulator configuration (error models, walls, ``[gap]`` settings).
+        heldout: names of held-out flights (default: every other flight; a single flight's second
+            half is held out).
+        progress: a callable ``progress(message)`` or None.
+    """
+
+    def __init__(self, logs: list[FlightLog], names: list[str], cfg: Config, heldout: list[str] | None = None,
+                 progress: Callable[[str], None] | None = None, seed: int = 20261122):
+        if not logs:
+            raise GapInputError("no flight logs given: expected at least one REAL.npz")
+        self.cfg = cfg
+        self.seed = int(seed)
+        self.M = cfg.gap.draws
+        self.say = progress or (lambda msg: None)
+        self.names = list(names)
+        self.say("replaying flights")
+        self.flights = prepare_flights(logs, self.names, cfg)
+        self.base = ModelParams.from_config(cfg)
+        self._split(heldout)
+        self.say("building reading tables")
+        self.tables = {}
+        for sensor, cls in (("ultrasonic", SonarTable), ("ranging", RangingTable), ("imu", ImuTable)):
+            tab = cls.build(self.flights, cfg, self.seed)
+            if tab is not None and tab.n > 0:
+                self.tables[sensor] = tab
+        if not self.tables:
+            raise GapInputError("the logs carry no sensor readings (ultrasonic, ranging or imu): nothing to compare")
+        self._choose_rows()
+        self._blocks()
+        self.scale = {}
+        for s in self.tables:
+            a, _ = self._terms(s, self.base, self.rows_fit[s])
+            v = float(np.nanmean(a)) if np.isfinite(a).any() else 1.0
+            self.scale[s] = max(v, 1e-9)
+
+    # ------------------------------------------------------------------ set-up
+    def _split(self, heldout):
+        n = len(self.flights)
+        self.single = n == 1
+        if self.single:
+            f = self.flights[0]
+            mid = f.t[0] + 0.5 * (f.t[-1] - f.t[0])
+            self._is_heldout = lambda fl, sec: (f.t[0] + sec) >= mid
+            self.train_names, self.heldout_names = [f.name + " (first half)"], [f.name + " (second half)"]
+            return
+        if heldout:
+            unknown = [h for h in heldout if h not in self.names]
+            if unknown:
+                raise GapInputError(f"--heldout names {unknown}: not among the given flights {self.names}")
+            ho = set(heldout)
+            if len(ho) == n:
+                raise GapInputError("--heldout names every flight: expected at least one training flight")
+        else:
+            ho = {f.name for f in self.flights[1::2]}
+        self.heldout_names = [f.name for f in self.flights if f.name in ho]
+        self.train_names = [f.name for f in self.flights if f.name not in ho]
+        hidx = {f.index for f in self.flights if f.name in ho}
+        self._is_heldout = lambda fl, sec: np.isin(fl, list(hidx))
+
+    def _choose_rows(self):
+        rng = np.random.default_rng(self.seed)
+        cap = self.cfg.gap.fit_max_readings
+        self.rows_fit, self.rows_ho, self.rows_all = {}, {}, {}
+        for s, tab in self.tables.items():
+            if self.single:
+                ho = self._is_heldout(tab.flight, tab.seconds)
+            else:
+                ho = self._is_heldout(tab.flight, tab.seconds)
+            tr_rows = np.nonzero(~ho)[0]
+            ho_rows = np.nonzero(ho)[0]
+            if tr_rows.size == 0 or ho_rows.size == 0:
+                raise GapInputError(f"{s}: no readings in the {'training' if tr_rows.size == 0 else 'held-out'} flights")
+            self.rows_fit[s] = np.sort(rng.choice(tr_rows, min(cap, tr_rows.size), replace=False))
+            self.rows_ho[s] = np.sort(rng.choice(ho_rows, min(4 * cap, ho_rows.size), replace=False))
+            allr = np.arange(tab.n)
+            self.rows_all[s] = np.sort(rng.choice(allr, min(6 * cap, allr.size), replace=False))
+
+    def _blocks(self):
+        """Bootstrap blocks: contiguous time windows per flight, at least 25 on the held-out set."""
+        ho_span = 0.0
+        for f in self.flights:
+            span = f.t[-1] - f.t[0]
+            ho_span += 0.5 * span if self.single else (span if f.name in self.heldout_names else 0.0)
+        self.block_seconds = min(self.cfg.gap.block_seconds, max(ho_span / 25.0, 1e-3))
+
+    def block_ids(self, sensor, rows):
+        tab = self.tables[sensor]
+        return tab.flight[rows] * 10_000_000 + np.floor(tab.seconds[rows] / self.block_seconds).astype(np.int64)
+
+    # ------------------------------------------------------------------ scoring
+    def _terms(self, sensor, p: ModelParams, rows):
+        tab = self.tables[sensor]
+        D = tab.draws(self.flights, p, rows, self.seed, self.M)
+        return ensemble_terms(np.ascontiguousarray(D), np.ascontiguousarray(tab.y[rows]))
+
+    def score_rows(self, sensor, p: ModelParams, rows):
+        """Per-row normalised (CRPS, gap) of a sensor under parameters p. Each (len(rows),)."""
+        a, b = self._terms(sensor, p, rows)
+        sc = self.scale.get(sensor, 1.0)
+        crps = (a - 0.5 * b) / sc
+        gap = (a - b) / sc
+        if sensor == "ranging":
+            tab = self.tables[sensor]
+            prob = tab.dropout_prob(p, rows)
+            z = tab.missing[rows].astype(float)
+            crps = np.nan_to_num(crps, nan=0.0) + brier(prob, z)
+            gap = np.nan_to_num(gap, nan=0.0) + brier_gap(prob, z)
+        return crps, gap
+
+    def overall(self, values: dict, rows: dict, n_boot=None):
+        """Mean over sensors of the per-row mean of ``values`` (sensor → (n,)), with block-bootstrap
+        CI and one-sided p-value for a positive mean. Returns (mean, (lo, hi), p)."""
+        sensors = [s for s in values if np.isfinite(values[s]).any()]
+        if not sensors:
+            return math.nan, (math.nan, math.nan), math.nan
+        ids = {s: self.block_ids(s, rows[s]) for s in sensors}
+        uniq = np.unique(np.concatenate(list(ids.values())))
+        bb = BlockBootstrap(uniq, n_boot=n_boot or self.cfg.gap.n_boot, seed=self.seed)
+        means, reps = [], []
+        for s in sensors:
+            v = values[s]
+            ok = np.isfinite(v)
+            inv = np.searchsorted(uniq, ids[s][ok])
+            sums = np.bincount(inv, weights=v[ok], minlength=uniq.size)
+            cnt = np.bincount(inv, minlength=uniq.size).astype(float)
+            means.append(sums.sum() / cnt.sum())
+            with np.errstate(invalid="ignore", divide="ignore"):
+                reps.append((bb.weights @ sums) / (bb.weights @ cnt))
+        mean = float(np.mean(means))
+        rep = np.nanmean(np.vstack(reps), axis=0)
+        rep = rep[np.isfinite(rep)]
+        if rep.size < 10:
+            return mean, (math.nan, math.nan), math.nan
+        lo, hi = np.quantile(rep, [0.025, 0.975])
+        se = float(np.std(rep, ddof=1))
+        from scipy import stats as _st
+        p = float(_st.norm.sf(mean / se)) if se > 0 else (0.0 if mean > 0 else 1.0)
+        return mean, (float(lo), float(hi)), p
+
+    def evaluate(self, p: ModelParams, which="heldout", sensors=None):
+        """Per-sensor per-row (crps, gap) on a row set ('fit', 'heldout', 'all')."""
+        rows = {"fit": self.rows_fit, "heldout": self.rows_ho, "all": self.rows_all}[which]
+        out = {}
+        for s in (sensors or self.tables):
+            if s in self.tables:
+                out[s] = self.score_rows(s, p, rows[s])
+        return out, rows
+
+    # ------------------------------------------------------------------ where
+    def locations(self, p: ModelParams):
+        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap."""
+        cfg = self.cfg.gap
+        res, rows = self.evaluate(p, "all")
+        locs = []
+        for s, (_, gap) in res.items():
+            tab = self.tables[s]
+            r = rows[s]
+            bb = BlockBootstrap(self.block_ids(s, r), n_boot=cfg.n_boot, seed=self.seed)
+            chans = [("all", np.ones(r.size, bool))]
+            if s == "ultrasonic" and len(tab.channel_names) > 1:
+                chans += [(nm, tab.channel[r] == k) for k, nm in enumerate(tab.channel_names)]
+            for cname, cmask in chans:
+                for feat, fv in tab.features.items():
+                    v = fv[r]
+                    ok = np.isfinite(v) & cmask
+                    if ok.sum() < 30:
+                        continue
+                    for lo, hi in _bins(v[ok], feat, cfg.n_bins):
+                        m = ok & (v >= lo) & (v < hi)
+                        if m.sum() < 30:
+                            continue
+                        st = bb.stats(gap, m)
+                        locs.append({"sensor": s, "channel": cname, "feature": feat, "low": float(lo),
+                                     "high": float(hi) if np.isfinite(hi) else 1e9, "gap": st.mean,
+                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive})
+        sig = fdr_significant([loc["_p"] for loc in locs], cfg.alpha)
+        for loc, sg in zip(locs, sig):
+            loc["_significant"] = bool(sg) and loc["gap"] > cfg.margin
+        locs.sort(key=lambda d: -d["gap"] if np.isfinite(d["gap"]) else math.inf)
+        return locs
+
+    # ------------------------------------------------------------------ which
+    def _objective(self, effect, current, sensors, values):
+        p = effect.apply(current, values)
+        tot = 0.0
+        for s in sensors:
+            if s in self.tables:
+                crps, _ = self.score_rows(s, p, self.rows_fit[s])
+                tot += float(np.nanmean(crps))
+        return tot
+
+    def fit(self, effect: fx.Effect, current: ModelParams) -> FitResult:
+        """Fit an effect's parameters on the training rows (others fixed at ``current``)."""
+        vals = dict(effect.start(current))
+        sensors = [s for s in effect.sensors if s in self.tables]
+        custom = effect.extra.get("fit") or _CUSTOM_FITS.get(effect.name)
+        if custom is not None:
+            vals = custom(self, effect, current, vals)
+        else:
+            groups = [[p] for p in effect.params] if effect.separable else [list(effect.params)]
+            for group in groups:
+                sens = [group[0].name] if (effect.separable and group[0].name in SENSORS) else sensors
+                if not any(s in self.tables for s in sens):
+                    continue
+                vals = self._fit_group(effect, current, sens, vals, group)
+        p = effect.apply(current, vals)
+        return FitResult(effect.name, vals, p, self._objective(effect, current, sensors, vals))
+
+    def _fit_group(self, effect, current, sensors, vals, group):
+        f = lambda v: self._objective(effect, current, sensors, v)  # noqa: E731
+        if len(group) == 1:
+            prm = group[0]
+            if prm.integer:
+                cands = range(int(prm.lo), int(prm.hi) + 1)
+                scores = [f({**vals, prm.name: c}) for c in cands]
+                return {**vals, prm.name: int(list(cands)[int(np.argmin(scores))])}
+            grid = np.unique(np.concatenate([np.linspace(prm.lo, prm.hi, 9), [vals[prm.name]]]))
+            scores = np.array([f({**vals, prm.name: g}) for g in grid])
+            j = int(np.argmin(scores))
+            a, b = grid[max(0, j - 1)], grid[min(grid.size - 1, j + 1)]
+            if b > a:
+                r = optimize.minimize_scalar(lambda x: f({**vals, prm.name: x}), bounds=(a, b), method="bounded",
+                                             options={"xatol": (prm.hi - prm.lo) / 400, "maxiter": 12})
+                best = r.x if r.fun < scores[j] else grid[j]
+            else:
+                best = grid[j]
+            return {**vals, prm.name: float(best)}
+        # several continuous parameters: coarse grid, then Nelder–Mead inside the bounds
+        lo = np.array([q.lo for q in group])
+        hi = np.array([q.hi for q in group])
+        axes = [np.linspace(q.lo, q.hi, 5) for q in group]
+        best_x, best_f = np.array([vals[q.name] for q in group], float), None
+        best_f = f(vals)
+        for pt in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(group), -1).T:
+            v = f({**vals, **{q.name: float(x) for q, x in zip(group, pt)}})
+            if v < best_f:
+                best_f, best_x = v, pt
+        g = lambda x: f({**vals, **{q.name: float(c) for q, c in zip(group, np.clip(x, lo, hi))}})  # noqa: E731
+        r = optimize.minimize(g, best_x, method="Nelder-Mead",
+                              options={"maxfev": 40, "xatol": 1e-3, "fatol": 1e-6,
+                                       "initial_simplex": _simplex(best_x, (hi - lo) / 8, lo, hi)})
+        x = np.clip(r.x, lo, hi) if r.fun < best_f else best_x
+        return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
+
+    def score_heldout(self, res: FitResult, gap_before_parts=None):
+        ev, rows = self.evaluate(res.params, "heldout")
+        res.rows_score = {s: c for s, (c, _) in ev.items()}
+        res.score_heldout = float(np.mean([np.nanmean(c) for c, _ in ev.values()]))
+        res.gap_heldout = float(np.mean([np.nanmean(g) for _, g in ev.values()]))
+        evt, _ = self.evaluate(res.params, "fit")
+        res.gap_train = float(np.mean([np.nanmean(g) for _, g in evt.values()]))
+        return res
+
+
+def _simplex(x0, step, lo, hi):
+    pts = [np.array(x0, float)]
+    for i in range(len(x0)):
+        p = np.array(x0, float)
+        p[i] = p[i] + step[i] if p[i] + step[i] <= hi[i] else p[i] - step[i]
+        pts.append(p)
+    return np.array(pts)
+
+
+def _bins(v, feat, n_bins):
+    """[low, high) bins of a feature's values: categories for discrete features, else quantiles."""
+    if feat in DISCRETE_FEATURES or np.unique(v).size <= 3:
+        return [(u, u + 0.5 if feat in DISCRETE_FEATURES else np.nextafter(u, np.inf)) for u in np.unique(v)]
+    edges = np.unique(np.quantile(v, np.linspace(0, 1, n_bins + 1)))
+    if edges.size < 2:
+        return []
+    out = [(edges[i], edges[i + 1]) for i in range(edges.size - 2)]
+    out.append((edges[-2], np.nextafter(edges[-1], np.inf)))
+    return out
+
+
+# ---------------------------------------------------------------------- closed-form fits
+
+def _fit_imu_bias(diag: Diagnosis, effect, current, vals):
+    """Each axis' bias = median residual of the real readings around the model's mean draw."""
+    if "imu" not in diag.tables:
+        return vals
+    tab = diag.tables["imu"]
+    rows = diag.rows_fit["imu"]
+    D = tab.draws(diag.flights, current, rows, diag.seed, diag.M)
+    res = tab.y[rows] - D.mean(axis=1)
+    out = dict(vals)
+    for c, name in enumerate(("acc_x", "acc_y", "gyro")):
+        m = tab.channel[rows] == c
+        prm = next(q for q in effect.params if q.name == name)
+        if m.any():
+            out[name] = float(np.clip(np.median(res[m]), prm.lo, prm.hi))
+    return out
+
+
+def _fit_dropout(diag: Diagnosis, effect, current, vals):
+    """Logistic regression of 'missing' on true distance by maximum likelihood (no draws needed)."""
+    if "ranging" not in diag.tables:
+        return vals
+    tab = diag.tables["ranging"]
+    rows = diag.rows_fit["ranging"]
+    z = tab.missing[rows].astype(float)
+    x = tab.features["true_range"][rows]
+    if z.sum() == 0:
+        return {"a": -12.0, "b": 0.0}
+
+    def nll(ab):
+        s = ab[0] + ab[1] * x
+        return float(np.mean(np.logaddexp(0.0, s) - z * s))
+
+    r = optimize.minimize(nll, np.array([math.log(max(z.mean(), 1e-6) / max(1 - z.mean(), 1e-6)), 0.0]),
+                          method="L-BFGS-B", bounds=[(effect.params[0].lo, effect.params[0].hi),
+                                                     (effect.params[1].lo, effect.params[1].hi)])
+    return {"a": float(r.x[0]), "b": float(r.x[1])}
+
+
+def _fit_pose_noise(diag: Diagnosis, effect, current, vals):
+    """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    sx0 = current.sigma_xy if current.sigma_xy is not None else float(np.mean([f.sigma_xy for f in diag.flights]))
+    sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
+    v = {"sigma_xy": sx0, "sigma_yaw": sy0}
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    for name, grid in (("sigma_xy", [0.0, 0.001, 0.002, 0.004, 0.007, 0.012, 0.02, 0.035, 0.05]),
+                       ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
+        cands = sorted(set(grid) | {v[name]})
+        scores = [f({**v, name: c}) for c in cands]
+        v[name] = float(cands[int(np.argmin(scores))])
+    return v
+
+
+_CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
+
+
+# ---------------------------------------------------------------------- the whole diagnosis
+
+def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dict:
+    """Locations, effect fits, greedy selection and verdict, as a gap-report dict (spec/gap-report.md)
+    plus private keys (prefixed ``_``) for the Markdown report and figures."""
+    cfg = diag.cfg.gap
+    t0 = time.perf_counter()
+    names = list(effect_names or cfg.effects or fx.REGISTRY)
+    unknown = [n for n in names if n not in fx.REGISTRY]
+    if unknown:
+        raise GapInputError(f"gap.effects names unknown effects {unknown}; catalogued: {sorted(fx.REGISTRY)}")
+    cands = [fx.REGISTRY[n] for n in names if any(s in diag.tables for s in fx.REGISTRY[n].sensors)]
+
+    diag.say("scoring the configured model")
+    base = diag.base
+    ev_b, rows_ho = diag.evaluate(base, "heldout")
+    gap_vals = {s: g for s, (_, g) in ev_b.items()}
+    gap_before, gap_ci, gap_p = diag.overall(gap_vals, rows_ho)
+    base_scores = {s: c for s, (c, _) in ev_b.items()}
+    score_before = float(np.mean([np.nanmean(c) for c in base_scores.values()]))
+    significant = bool(np.isfinite(gap_p) and gap_p < cfg.alpha and gap_before > cfg.margin)
+
+    diag.say("locating the gap")
+    locs = diag.locations(base)
+
+    diag.say(f"fitting {len(cands)} effects")
+    first = []
+    for e in cands:
+        diag.say(f"  effect {e.name}")
+        r = diag.score_heldout(diag.fit(e, base))
+        first.append(r)
+    first.sort(key=lambda r: r.score_heldout)
+
+    def improvement(cur_scores, new_scores):
+        diff = {s: cur_scores[s] - new_scores[s] for s in cur_scores if s in new_scores}
+        return diag.overall(diff, rows_ho)
+
+    # greedy forward selection on the held-out score
+    current, cur_scores, cur_gap = base, base_scores, gap_before
+    waterfall = [{"step": "configured model", "effect": None, "gap_heldout": gap_before, "ci": list(gap_ci)}]
+    added, pool = [], list(first)
+    ties = []
+    while significant and pool and len(added) < max_added:
+        if added:  # refit the remaining candidates on top of what was added
+            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool),
+                          key=lambda r: r.score_heldout)
+        best = pool[0]
+        imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
+        cur_mean_gap = max(cur_gap, 1e-12)
+        gain = (cur_gap - best.gap_heldout) / cur_mean_gap if cur_gap > 0 else 0.0
+        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and gain >= cfg.accept_gain):
+            break
+        if not added:
+            best_imp = score_before - best.score_heldout
+            ties = [r.name for r in pool[1:]
+                    if best_imp > 0 and (score_before - r.score_heldout) >= (1 - cfg.tie_tolerance) * best_imp]
+        added.append(best)
+        current, cur_scores, cur_gap = best.params, best.rows_score, best.gap_heldout
+        ev_c, _ = diag.evaluate(current, "heldout")
+        g, ci, _ = diag.overall({s: gg for s, (_, gg) in ev_c.items()}, rows_ho)
+        waterfall.append({"step": f"+ {best.name}", "effect": best.name, "gap_heldout": g, "ci": list(ci),
+                          "params": _clean(best.values)})
+        pool = [r for r in pool if r.name != best.name]
+        diag.say(f"  added {best.name}: held-out gap {g:.4f}")
+        if not (g > cfg.margin):
+            break
+
+    def shrink(g):
+        return float(1.0 - g / gap_before) if gap_before > 0 else 0.0
+
+    effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
+                "gap_after_train": r.gap_train, "gap_after_heldout": r.gap_heldout,
+                "shrink_heldout": shrink(r.gap_heldout)} for r in first]
+    total_shrink = shrink(cur_gap)
+    if not significant:
+        verdict = {"effect": None, "shrink_heldout": 0.0, "unexplained": False, "significant_gap": False}
+    elif not added or total_shrink < cfg.unexplained_shrink:
+        verdict = {"effect": None, "shrink_heldout": shrink(first[0].gap_heldout) if first else 0.0,
+                   "unexplained": True, "significant_gap": True}
+    else:
+        verdict = {"effect": added[0].name, "shrink_heldout": shrink(added[0].gap_heldout), "unexplained": False,
+                   "significant_gap": True}
+
+    report = {
+        "format": "finkensim-gap-report/1",
+        "flights": {"train": diag.train_names, "heldout": diag.heldout_names},
+        "score": "crps_gap_normalised",
+        "gap_before": gap_before,
+        "locations": [{k: v for k, v in loc.items() if not k.startswith("_")} for loc in locs],
+        "effects": effects,
+        "verdict": verdict,
+    }
+    report["_private"] = {
+        "gap_before_ci": list(gap_ci), "gap_before_p": gap_p, "score_before": score_before,
+        "waterfall": waterfall, "added": [r.name for r in added], "total_shrink": total_shrink, "ties": ties,
+        "significant_locations": [i for i, loc in enumerate(locs) if loc["_significant"]],
+        "scales": diag.scale, "sensors": list(diag.tables), "n_readings": {s: int(t.n) for s, t in diag.tables.items()},
+        "seconds": time.perf_counter() - t0, "block_seconds": diag.block_seconds,
+        "catch_all": [r.name for r in first if fx.REGISTRY[r.name].catch_all],
+    }
+    return report
+
+
+def _clean(values: dict) -> dict:
+    return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in values.items()}
+
+
+def diagnose(logs, names, cfg: Config, heldout=None, progress=None, effect_names=None) -> dict:
+    """Run the whole diagnosis; returns the report dict (see :func:`run_diagnosis`)."""
+    diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress)
+    return run_diagnosis(diag, effect_names)

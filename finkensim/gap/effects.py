@@ -1,0 +1,153 @@
+"""The catalogue of candidate unmodelled effects, each a small plug-in.
+
+An :class:`Effect` names the sensors it changes, its parameters (bounds, integer or not), and
+how a set of parameter values modifies a :class:`~finkensim.gap.predictive.ModelParams`. The
+diagnosis fits each effect's parameters on the training flights (minimising the mean CRPS of
+the sensors it touches) and measures it on held-out flights.
+
+Add your own in a notebook::
+
+    from finkensim.gap.effects import Effect, Param, register
+
+    register(Effect(
+        name="sonar_offset_bias", sensors=("ultrasonic",),
+        params=(Param("bias", -0.3, 0.3),),
+        apply=lambda base, v: base.with_(sonar_bias=base.sonar_bias + v["bias"]),
+        doc="a constant offset on every sonar echo"))
+
+``apply(base, values)`` must be pure. ``expected_features`` (optional) lists the location
+features where the effect is expected to show up; only ``finkensim gap-validate`` uses it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from . import replay as rp
+from .predictive import ERR_NONE, ERR_RAYLEIGH, ModelParams
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: bounds [lo, hi] in the unit of ``unit``; ``integer`` for step counts."""
+
+    name: str
+    lo: float
+    hi: float
+    integer: bool = False
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    sensors: tuple[str, ...]
+    params: tuple[Param, ...]
+    apply: Callable[[ModelParams, dict], ModelParams]
+    doc: str = ""
+    initial: Callable[[ModelParams], dict] | None = None
+    expected_features: tuple[str, ...] = ()
+    catch_all: bool = False
+    separable: bool = False  # parameters act on different sensors and are fitted one at a time
+    extra: dict = field(default_factory=dict)
+
+    def start(self, base: ModelParams) -> dict:
+        """Parameter values that reproduce the base model (or the effect's neutral values)."""
+        if self.initial is not None:
+            return self.initial(base)
+        return {p.name: (p.lo if p.lo >= 0 else 0.0) for p in self.params}
+
+
+REGISTRY: dict[str, Effect] = {}
+
+
+def register(effect: Effect) -> Effect:
+    """Add (or replace) an effect in the catalogue; returns it."""
+    REGISTRY[effect.name] = effect
+    return effect
+
+
+def _rayleigh_scale(base: ModelParams, v: dict) -> ModelParams:
+    sigma0 = base.sonar_sigma if base.sonar_sigma > 0 else 0.05
+    err = base.sonar_error if base.sonar_error != ERR_NONE else ERR_RAYLEIGH
+    return base.with_(sonar_error=err, sonar_sigma=sigma0 * v["scale"])
+
+
+def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
+    sched = base.xtalk_schedule if base.xtalk_geo_q > 0 else rp.SCHEDULE_ALL
+    return base.with_(xtalk_geo_q=v["probability"], xtalk_schedule=sched)
+
+
+register(Effect(
+    "wall_bulge", ("ultrasonic",), (Param("gain", 0.0, 3.0),),
+    lambda b, v: b.with_(wall_gain=v["gain"]),
+    doc="curtain plates bend toward copters (Bernoulli); gain scales the modelled displacement",
+    initial=lambda b: {"gain": b.wall_gain},
+    expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence")))
+register(Effect(
+    "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),
+    _crosstalk_geometric,
+    doc="a sonar hears another copter's ping when the emitter is in its cone and points at it",
+    initial=lambda b: {"probability": b.xtalk_geo_q},
+    expected_features=("neighbor_in_beam", "neighbor_distance", "hit_type")))
+register(Effect(
+    "crosstalk_constant", ("ultrasonic",), (Param("probability", 0.0, 0.95),),
+    lambda b, v: b.with_(xtalk_const_p=v["probability"]),
+    doc="a constant fraction of readings is halved (the report's 68 % rule)",
+    initial=lambda b: {"probability": b.xtalk_const_p},
+    expected_features=("true_range",), catch_all=True))
+register(Effect(
+    "sonar_rayleigh_scale", ("ultrasonic",), (Param("scale", 0.1, 10.0),),
+    _rayleigh_scale,
+    doc="the sonar noise scale sigma is off by a factor",
+    initial=lambda b: {"scale": 1.0}, catch_all=True))
+register(Effect(
+    "sonar_bias", ("ultrasonic",), (Param("bias", -0.5, 0.5, unit="m"),),
+    lambda b, v: b.with_(sonar_bias=b.sonar_bias + v["bias"]),
+    doc="a constant offset on every echo", initial=lambda b: {"bias": 0.0}, catch_all=True))
+register(Effect(
+    "beam_width", ("ultrasonic",), (Param("half_angle_deg", 0.0, 60.0, unit="deg"),),
+    lambda b, v: b.with_(beam_half_angle=math.radians(v["half_angle_deg"])),
+    doc="the sonar reports the nearest echo inside a cone, not along one ray",
+    initial=lambda b: {"half_angle_deg": math.degrees(b.beam_half_angle)},
+    expected_features=("neighbor_in_beam", "neighbor_distance", "hit_to_copter", "incidence", "true_range",
+                       "hit_type")))
+register(Effect(
+    "sound_speed", ("ultrasonic",), (Param("factor", 0.8, 1.25),),
+    lambda b, v: b.with_(sonar_scale=b.sonar_scale * v["factor"]),
+    doc="speed of sound differs from the assumed one (temperature): readings scale by a factor",
+    initial=lambda b: {"factor": 1.0}, expected_features=("true_range",)))
+register(Effect(
+    "latency", ("ultrasonic", "ranging", "imu"),
+    (Param("ultrasonic", 0, 10, integer=True, unit="steps"), Param("ranging", 0, 10, integer=True, unit="steps"),
+     Param("imu", 0, 10, integer=True, unit="steps")),
+    lambda b, v: b.with_(latency_sonar=int(v["ultrasonic"]), latency_ranging=int(v["ranging"]),
+                         latency_imu=int(v["imu"])),
+    doc="readings describe the world some steps earlier (per sensor)",
+    initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
+    expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
+register(Effect(
+    "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.6, unit="m")),
+    lambda b, v: b.with_(nlos_bias=v["bias"], nlos_width=v["width"]),
+    doc="ranging reads long when a third copter's body is near the line of sight: bias·exp(−(clearance/width)²)",
+    initial=lambda b: {"bias": b.nlos_bias, "width": b.nlos_width},
+    expected_features=("los_clearance", "neighbor_distance")))
+register(Effect(
+    "ranging_dropout", ("ranging",), (Param("a", -12.0, 8.0), Param("b", -6.0, 6.0, unit="1/m")),
+    lambda b, v: b.with_(dropout_a=v["a"], dropout_b=v["b"]),
+    doc="readings go missing with probability sigmoid(a + b·distance)",
+    initial=lambda b: {"a": -12.0, "b": 0.0}, expected_features=("true_range",)))
+register(Effect(
+    "pose_noise", ("ultrasonic", "ranging", "imu"),
+    (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
+    lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
+    doc="tracking noise in the logged poses", catch_all=True))
+register(Effect(
+    "imu_bias", ("imu",),
+    (Param("acc_x", -1.0, 1.0, unit="m/s^2"), Param("acc_y", -1.0, 1.0, unit="m/s^2"),
+     Param("gyro", -0.5, 0.5, unit="rad/s")),
+    lambda b, v: b.with_(acc_bias_x=b.acc_bias_x + v["acc_x"], acc_bias_y=b.acc_bias_y + v["acc_y"],
+                         gyro_bias=b.gyro_bias + v["gyro"]),
+    doc="constant accelerometer and gyro biases", initial=lambda b: {"acc_x": 0.0, "acc_y": 0.0, "gyro": 0.0},
+    separable=True))
