@@ -1,6 +1,8 @@
 """The ``finkensim`` command line.
 
     finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--ideal]
+    finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
+                    [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -170,6 +172,93 @@ def cmd_run(args) -> int:
 
 
 # ------------------------------------------------------------------------------------------
+# finkensim sweep
+# ------------------------------------------------------------------------------------------
+
+EXIT_RUNS_FAILED = 1
+MAX_FAILURES_SHOWN = 20
+
+
+def _add_sweep(sub) -> None:
+    p = sub.add_parser(
+        "sweep",
+        help="Monte-Carlo parameter sweep: metrics of many episodes, with summary table and plot",
+        description="Run every parameter combination x replicate of a sweep file (see finkensim.sweep) and write "
+                    "DIR/parts/run-XXXXX.parquet (one per finished run), DIR/results.parquet, DIR/summary.csv "
+                    "(mean and 95%% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
+    )
+    p.add_argument("sweep", help="sweep TOML file ([base], [grid] or [random], replicates, duration, metrics, seed)")
+    p.add_argument("--out", default="out/sweep", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--executor", default=None, choices=("serial", "process", "dask"),
+                   help="process: local process pool (default); dask: Dask cluster (--scheduler, else a local "
+                        "cluster); serial: one run after another in this process (debugging)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="worker processes for the process pool or local Dask cluster (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 (implies --executor dask)")
+    p.add_argument("--resume", action="store_true", help="run only the runs whose result part is missing in DIR")
+    p.add_argument("--overwrite", action="store_true", help="discard results already in DIR and start again")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_sweep)
+
+
+def cmd_sweep(args) -> int:
+    prog = args.prog
+    t_start = time.perf_counter()
+    from .config import ConfigError
+    from .sweep import Sweep, format_params, run_sweep
+
+    path = Path(args.sweep)
+    if not path.exists():
+        raise UsageError(prog, f"sweep file {args.sweep!r} does not exist")
+    if not path.is_file():
+        raise UsageError(prog, f"sweep {args.sweep!r} is not a file")
+    executor = args.executor or ("dask" if args.scheduler else "process")
+    if args.scheduler and executor != "dask":
+        raise UsageError(prog, f"--scheduler needs --executor dask, got --executor {executor}")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(prog, f"--workers {args.workers}: expected a positive number of workers")
+    try:
+        sweep = Sweep.from_toml(path)
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
+
+    workers = args.workers or os.cpu_count() or 1
+    where = {"serial": "serially", "process": f"on a process pool of {min(workers, sweep.n_runs)} workers",
+             "dask": f"on the Dask scheduler {args.scheduler}" if args.scheduler
+             else f"on a local Dask cluster of {workers} workers"}[executor]
+    print(f"{prog}: {sweep.n_runs} runs ({sweep.n_combinations} combinations x {sweep.replicates} replicates) "
+          f"of {sweep.duration:g} s, {sweep.design} over {', '.join(sweep.parameters) or 'nothing'}, {where} -> {args.out}")
+    try:
+        df = run_sweep(sweep, args.out, executor=executor, workers=args.workers, scheduler=args.scheduler,
+                       resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
+    except ConfigError as exc:  # SweepError: raised before any run
+        raise UsageError(prog, str(exc)) from None
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted; finished runs are kept in {args.out}/parts, finish with --resume", file=sys.stderr)
+        return 130
+
+    n_ran, skipped = len(df.attrs["ran"]), len(df) - len(df.attrs["ran"])
+    failed = df[df["status"] != "ok"]
+    note = f" ({skipped} already done)" if skipped else ""
+    print(f"{prog}: {n_ran} runs in {time.perf_counter() - t_start:.1f} s{note}; {len(df) - len(failed)} ok, "
+          f"{len(failed)} failed")
+    out = Path(args.out)
+    for name in ("results.parquet", "summary.csv", "summary.png"):
+        print(f"  {out / name}")
+    if len(failed):
+        print(f"{prog}: {len(failed)} of {len(df)} runs failed:", file=sys.stderr)
+        for _, row in failed.head(MAX_FAILURES_SHOWN).iterrows():
+            params = format_params({k: row[k] for k in sweep.parameters})
+            print(f"  run {row['run_id']} ({params}, replicate {row['replicate']}, seed {row['seed']}): "
+                  f"{_one_line(row['error'])}", file=sys.stderr)
+        if len(failed) > MAX_FAILURES_SHOWN:
+            print(f"  ... and {len(failed) - MAX_FAILURES_SHOWN} more (see {out / 'results.parquet'})", file=sys.stderr)
+        return EXIT_RUNS_FAILED
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------------------
 # entry point
 # ------------------------------------------------------------------------------------------
 
@@ -182,7 +271,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"finkensim {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     _add_run(sub)
-    # later: _add_sweep(sub), _add_gap(sub), _add_bench(sub), ...
+    _add_sweep(sub)
+    # later: _add_gap(sub), _add_bench(sub), ...
     return parser
 
 
