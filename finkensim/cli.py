@@ -1,6 +1,6 @@
 """The ``finkensim`` command line.
 
-    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--ideal]
+    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal]
     finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
                     [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
     finkensim --version
@@ -50,14 +50,16 @@ def _one_line(text: str) -> str:
 # ------------------------------------------------------------------------------------------
 
 ARENA_TRAIL_SECONDS = 10.0  # trail length drawn in arena.png
+SENSORS_COPTER = 0  # copter whose sonar and IMU time series sensors.png shows
 
 
 def _add_run(sub) -> None:
     p = sub.add_parser(
         "run",
         help="simulate one flight, write its log, pictures and animation",
-        description="Simulate one flight of a scenario and write DIR/flight.npz (flight log), "
-                    "DIR/arena.png (arena at the largest wall deflection), DIR/wall_response.png "
+        description="Simulate one flight of a scenario and write DIR/flight.npz (flight log with sensor "
+                    "readings and their error-free values), DIR/arena.png (arena at the largest wall "
+                    "deflection), DIR/wall_response.png, DIR/sensors.png (sensors vs ideal values) "
                     "and DIR/flight.gif.",
     )
     p.add_argument("scenario", nargs="?", default=None,
@@ -68,8 +70,9 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="random seed (default: simulation.seed of the scenario)")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
-    p.add_argument("--ideal", action="store_true",
-                   help="also store error-free sensor values in the log (extras *_ideal, ultrasonic_hit_type)")
+    p.add_argument("--ideal", action=argparse.BooleanOptionalAction, default=True,
+                   help="store the error-free sensor values in the log (extras *_ideal, ultrasonic_hit_type); "
+                        "on by default, --no-ideal leaves them out")
     p.set_defaults(func=cmd_run)
 
 
@@ -153,6 +156,13 @@ def cmd_run(args) -> int:
         fig.savefig(path, dpi=130)
         plt.close(fig)
         written.append(("wall response", path, "amplitude law and simulated plate angles"))
+
+        if log.ultrasonic is not None or log.ranging is not None or log.imu_acc is not None:
+            fig, _ = viz.plot_sensors(log, copter=SENSORS_COPTER)
+            path = viz.save_png(fig, out / "sensors.png", dpi=100)  # 256-colour palette: ~1/3 of the size
+            plt.close(fig)
+            what = "sonar, ranging, IMU" + (" vs ideal values" if args.ideal else " (no ideal values: --no-ideal)")
+            written.append(("sensor picture", path, f"{what}, copter {SENSORS_COPTER}"))
 
         if not args.no_gif:
             path = viz.animate(world, traj, path=out / "flight.gif")

@@ -85,7 +85,7 @@ def test_run_writes_valid_log_pictures_and_gif(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["run", "--out", str(out), "--duration", "3", "--seed", "5"]) == 0
     stdout = capsys.readouterr().out
-    for name in ("flight.npz", "arena.png", "wall_response.png", "flight.gif"):
+    for name in ("flight.npz", "arena.png", "wall_response.png", "sensors.png", "flight.gif"):
         assert (out / name).is_file(), name
         assert str(out / name) in stdout
 
@@ -95,12 +95,86 @@ def test_run_writes_valid_log_pictures_and_gif(tmp_path, capsys):
     assert log.pose.shape == (61, 6, 3)
     assert log.meta["config"]["simulation"]["seed"] == 5
 
-    for name in ("arena.png", "wall_response.png"):
+    # sensor blocks and, by default, their error-free values
+    T, N = 61, 6
+    assert log.ultrasonic.shape == (T, N, 4) and log.ultrasonic_yaw.shape == (4,)
+    assert log.ranging.shape == (T, N, N)
+    assert log.imu_acc.shape == (T, N, 2) and log.imu_gyro.shape == (T, N)
+    expected_extras = {"ultrasonic_ideal": (T, N, 4), "ultrasonic_hit_type": (T, N, 4), "ultrasonic_down": (T, N),
+                       "ranging_ideal": (T, N, N), "imu_acc_ideal": (T, N, 2), "imu_gyro_ideal": (T, N)}
+    for name, shape in expected_extras.items():
+        assert name in log.extras, name
+        assert log.extras[name].shape == shape, name
+        assert np.all(np.isfinite(log.extras[name])), name
+    assert np.all((log.ultrasonic >= 0.2) & (log.ultrasonic <= 3.0))
+    np.testing.assert_array_equal(np.diagonal(log.ranging, axis1=1, axis2=2), 0.0)
+    # the ideal values are the noise-free truth the readings scatter around
+    assert 0.0 < np.std(log.imu_gyro - log.extras["imu_gyro_ideal"]) < 0.01
+    assert np.median(np.abs(log.ranging - log.extras["ranging_ideal"])) < 0.3
+
+    for name in ("arena.png", "wall_response.png", "sensors.png"):
         with Image.open(out / name) as im:
             assert im.format == "PNG" and min(im.size) > 300
     with Image.open(out / "flight.gif") as im:
         assert im.format == "GIF"
         assert 2 <= im.n_frames <= 150
+
+
+def test_run_no_ideal_leaves_out_ideal_values_but_draws_sensors(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", "--out", str(out), "--duration", "1", "--seed", "2", "--no-gif", "--no-ideal"]) == 0
+    log = flightlog.load(out / "flight.npz")
+    assert log.ultrasonic is not None and log.ranging is not None and log.imu_acc is not None
+    assert not any(name.endswith("_ideal") for name in log.extras)
+    assert "ultrasonic_hit_type" not in log.extras
+    with Image.open(out / "sensors.png") as im:
+        assert im.format == "PNG" and min(im.size) > 300
+    # --ideal is accepted (and is the default)
+    assert main(["run", "--out", str(tmp_path / "o2"), "--duration", "0.5", "--no-gif", "--ideal"]) == 0
+    assert "ranging_ideal" in flightlog.load(tmp_path / "o2" / "flight.npz").extras
+
+
+def test_run_without_sensors_skips_sensor_picture(tmp_path):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text("[sonar]\nenabled = false\n\n[ranging]\nenabled = false\n\n[imu]\nenabled = false\n")
+    out = tmp_path / "o"
+    assert main(["run", str(scenario), "--out", str(out), "--duration", "0.5", "--no-gif"]) == 0
+    assert (out / "flight.npz").is_file() and not (out / "sensors.png").exists()
+
+
+def test_plot_sensors_skips_missing_blocks():
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    from finkensim import viz
+
+    log, _, _ = simulate_flight(None, duration=1.0, seed=3, ideal=True)
+
+    def without(**blocks):
+        fields = {f.name: getattr(log, f.name) for f in dataclasses.fields(log)}
+        fields.update(blocks)
+        return flightlog.FlightLog(**fields)
+
+    no_sonar = dict(ultrasonic=None, ultrasonic_yaw=None, ultrasonic_offset=None)
+    no_imu = dict(imu_acc=None, imu_gyro=None)
+    cases = [
+        (log, {"sonar", "ranging", "acc", "gyro", "acc_error", "gyro_error"}),
+        (without(extras={"wall_theta": log.extras["wall_theta"]}), {"sonar", "ranging", "acc", "gyro"}),
+        (without(**no_sonar, ranging=None), {"acc", "gyro", "acc_error", "gyro_error"}),
+        (without(**no_imu, ranging=None), {"sonar"}),
+        (without(**no_sonar, **no_imu), {"ranging"}),
+    ]
+    for case, panels in cases:
+        fig, axes = viz.plot_sensors(case, copter=1)
+        assert set(axes) == panels
+        plt.close(fig)
+    events = viz.sonar_crosstalk_events(log)
+    assert events.shape == log.ultrasonic.shape and events.dtype == bool
+    with pytest.raises(ValueError, match="no sensor blocks"):
+        viz.plot_sensors(without(**no_sonar, **no_imu, ranging=None))
+    with pytest.raises(ValueError, match="copter"):
+        viz.plot_sensors(log, copter=6)
 
 
 def test_run_user_scenario_and_no_gif(tmp_path):
@@ -112,6 +186,7 @@ def test_run_user_scenario_and_no_gif(tmp_path):
     log = flightlog.load(out / "flight.npz")
     assert log.pose.shape == (21, 3, 3)
     assert (out / "arena.png").is_file() and (out / "wall_response.png").is_file()
+    assert (out / "sensors.png").is_file()
 
 
 def test_bad_key_exits_2_naming_the_key(tmp_path, capsys):
