@@ -28,5 +28,15 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run $(if $(QUICK),--quick,)
 
+# Peer simulators in their own venv (torch is large and must not enter .venv): VMAS on torch CPU runs
+# the comparison workload (benchmarks/peers/vmas_scenario.py) and writes out/bench/peers.json, which
+# `make bench` merges into its table when present.
+PEERS_VENV := .venv-peers
+bench-peers:
+	test -x $(PEERS_VENV)/bin/python || $(PYTHON) -m venv $(PEERS_VENV)
+	$(PEERS_VENV)/bin/python -m pip install --quiet "numpy>=1.26" "torch==2.13.0"
+	$(PEERS_VENV)/bin/python -m pip install --quiet "vmas==1.5.2" || $(PEERS_VENV)/bin/python -m pip install --quiet vmas
+	$(PEERS_VENV)/bin/python -m benchmarks.peers.run_vmas $(if $(QUICK),--quick,) --out out/bench/peers.json
+
 clean:
 	rm -rf $(VENV) .numba_cache out .pytest_cache .hypothesis

@@ -1,0 +1,351 @@
+"""``python -m benchmarks.run [--quick]`` (``make bench``): throughput, compile time, memory, scaling.
+
+Prints one table and saves it as ``out/bench/bench.md`` and ``out/bench/bench.json``. Every figure
+is measured in this run (ratios are only meaningful within one run: the machine is shared):
+
+(a) **comparison workload** (``benchmarks.workloads``: 4 walls, 4 sonar rays per copter hitting
+    walls and copters, pairwise distances, kinematic update, no noise) — finkensim's compiled rollout
+    vs the plain vectorised NumPy version, and VMAS when ``out/bench/peers.json`` exists
+    (``make bench-peers``; that file comes from an earlier run, and its figures are marked so);
+(b) **full FINken workload** — ``finkensim.swarm`` when importable, else "n/a (finkensim.swarm
+    missing)" plus the stand-in (``World.rollout`` + batched sensors);
+for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments.
+
+**Timing.** Each implementation is warmed up (compiled) first, the number of steps per timed call
+is calibrated to ≈ ``--seconds``, then the implementations of one configuration are timed in turn,
+``--repeats`` times interleaved, and the fastest call counts (the least disturbed by other jobs).
+env-steps/s = B·T / time; copter-steps/s = N·B·T / time. numba uses all cores (2 here) across
+environments; NumPy is single-threaded as it comes.
+
+**JIT compile time**, separately, in subprocesses (``benchmarks.compile_probe``): *cold* = a fresh
+empty NUMBA_CACHE_DIR, so the first call compiles and writes the cache; *warm* = the same directory
+again, so the first call only loads the cache. Reported: import time and first-call time.
+
+**Peak memory per environment** = tracemalloc's peak over building the workload (state, buffers,
+outputs) plus one step, divided by B. NumPy arrays (also those passed to numba kernels) are traced;
+memory that numba kernels allocate internally (per-environment work buffers inside ``prange``
+bodies, at most a few KiB per environment here) is not; neither is memory shared by all
+environments and built once (e.g. the ranging alias table, 2 MB). VMAS: ru_maxrss delta of a fresh
+subprocess per configuration (torch's allocator is invisible to tracemalloc) — a different method,
+so compare VMAS's memory column with care.
+
+``--quick`` runs a tiny subset (a few seconds with a warm numba cache): workload (a) for N ∈ {4, 10}
+× B ∈ {1, 64}, the scaling benchmark for N ∈ {10, 100}, no compile probes and no workload (b).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+FULL_N = (4, 10, 32, 100)
+FULL_B = (1, 64, 1024)
+QUICK_N = (4, 10)
+QUICK_B = (1, 64)
+MAX_STEPS = 100_000
+
+
+# ---------------------------------------------------------------------------------------------
+# timing and memory
+
+
+def _time_call(fn, steps: int) -> float:
+    t0 = time.perf_counter()
+    fn(steps)
+    return time.perf_counter() - t0
+
+
+def measure(runners: dict, seconds: float, repeats: int) -> dict:
+    """Seconds per step of each ``runners[name](T)`` (already warmed up): calibrate T per runner so
+    one call takes ≈ ``seconds``, then ``repeats`` interleaved rounds; the fastest call counts."""
+    steps = {}
+    for name, fn in runners.items():
+        # grow T until a call is long enough to extrapolate; min of two calls, so that one call that
+        # waited for a core (other jobs, or a parallel kernel's worker thread) does not stop it early
+        T = 1
+        while True:
+            t = min(_time_call(fn, T), _time_call(fn, T))
+            if t >= seconds / 4 or T >= MAX_STEPS:
+                break
+            T = min(MAX_STEPS, T * 4)
+        steps[name] = max(1, min(MAX_STEPS, int(T * seconds / max(t, 1e-9))))
+    best = {name: np.inf for name in runners}
+    for _ in range(repeats):
+        for name, fn in runners.items():
+            best[name] = min(best[name], _time_call(fn, steps[name]) / steps[name])
+    return {name: dict(s_per_step=best[name], steps=steps[name]) for name in runners}
+
+
+def peak_bytes(build, steps: int = 1) -> int:
+    """tracemalloc peak (bytes) while building a workload with ``build()`` and running ``steps`` steps."""
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    try:
+        wl = build()
+        wl.run(steps)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+# ---------------------------------------------------------------------------------------------
+# workloads
+
+
+def bench_compare(ns, bs, seconds, repeats, log) -> list[dict]:
+    from .workloads import CompareWorkload
+
+    rows = []
+    for n in ns:
+        for b in bs:
+            wls = {impl: CompareWorkload(n, b, impl) for impl in ("finkensim", "numpy")}
+            for wl in wls.values():
+                wl.run(1)  # compile / first touch
+            m = measure({k: wl.run for k, wl in wls.items()}, seconds, repeats)
+            row = dict(N=n, B=b)
+            for impl in wls:
+                s = m[impl]["s_per_step"]
+                row[impl] = dict(env_steps_per_s=b / s, copter_steps_per_s=n * b / s, steps=m[impl]["steps"],
+                                 peak_bytes_per_env=peak_bytes(lambda impl=impl: CompareWorkload(n, b, impl)) / b)
+            row["ratio_numpy"] = row["finkensim"]["env_steps_per_s"] / row["numpy"]["env_steps_per_s"]
+            rows.append(row)
+            log(f"(a) N={n:4d} B={b:5d}  finkensim {row['finkensim']['env_steps_per_s']:12.0f}  "
+                f"numpy {row['numpy']['env_steps_per_s']:10.0f} env-steps/s  (x{row['ratio_numpy']:.1f})")
+    return rows
+
+
+def bench_finken(ns, bs, seconds, repeats, log) -> tuple[list[dict], str]:
+    import warnings
+
+    from .workloads import FinkenStandIn, FinkenSwarm, swarm_status
+
+    status = swarm_status()
+    label = "finkensim.swarm" if status is None else "stand-in: World.rollout + batched sensors"
+    cls = FinkenSwarm if status is None else FinkenStandIn
+    rows = []
+    for n in ns:
+        for b in bs:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                try:
+                    wl = cls(n, b)
+                    wl.run(1)
+                except Exception as e:  # noqa: BLE001 - one failing configuration must not hide the rest
+                    rows.append(dict(N=n, B=b, impl=label, error=f"{type(e).__name__}: {e}"))
+                    log(f"(b) N={n:4d} B={b:5d}  failed: {type(e).__name__}: {e}")
+                    continue
+                s = measure({"finken": wl.run}, seconds, repeats)["finken"]
+                mem = peak_bytes(lambda: cls(n, b)) / b
+            rows.append(dict(N=n, B=b, impl=label, env_steps_per_s=b / s["s_per_step"],
+                             copter_steps_per_s=n * b / s["s_per_step"], steps=s["steps"], peak_bytes_per_env=mem))
+            log(f"(b) N={n:4d} B={b:5d}  {rows[-1]['env_steps_per_s']:12.0f} env-steps/s  [{label}]")
+    return rows, status or ""
+
+
+def compile_probes(workloads, log) -> list[dict]:
+    """Cold (fresh empty cache dir) then warm (same dir) first-call times, in subprocesses."""
+    out = []
+    root = Path(__file__).resolve().parent.parent
+    for wl in workloads:
+        with tempfile.TemporaryDirectory(prefix="finkensim-numba-cold-") as cache:
+            row = dict(workload=wl)
+            for kind in ("cold", "warm"):
+                env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(root))
+                t0 = time.perf_counter()
+                p = subprocess.run([sys.executable, "-m", "benchmarks.compile_probe", wl], capture_output=True,
+                                   text=True, cwd=root, env=env)
+                wall = time.perf_counter() - t0
+                if p.returncode != 0:
+                    row[kind] = dict(error=(p.stderr.strip().splitlines() or ["failed"])[-1])
+                else:
+                    row[kind] = dict(json.loads(p.stdout.strip().splitlines()[-1]), process_s=wall)
+                log(f"compile {wl} {kind}: {row[kind]}")
+            out.append(row)
+    return out
+
+
+def load_peers(path: Path) -> dict | None:
+    if not path.exists():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    data["by_config"] = {(r["N"], r["B"]): r for r in data.get("results", []) if "error" not in r}
+    return data
+
+
+# ---------------------------------------------------------------------------------------------
+# report
+
+
+def _rate(x) -> str:
+    if x is None:
+        return "—"
+    if x >= 1e6:
+        return f"{x / 1e6:.2f} M"
+    if x >= 1e4:
+        return f"{x / 1e3:.0f} k"
+    if x >= 1e3:
+        return f"{x / 1e3:.1f} k"
+    return f"{x:.1f}"
+
+
+def _mem(b) -> str:
+    if b is None:
+        return "—"
+    if b >= 1 << 20:
+        return f"{b / (1 << 20):.1f} MiB"
+    return f"{b / 1024:.1f} KiB"
+
+
+def _ratio(x) -> str:
+    return "—" if x is None else (f"{x:,.0f}×" if x >= 100 else f"{x:.1f}×")
+
+
+def report(res: dict) -> str:
+    L = []
+    meta = res["meta"]
+    L.append("# finkensim benchmark")
+    L.append("")
+    L.append(f"{meta['time']} · Python {meta['python']} · NumPy {meta['numpy']} · numba {meta['numba']} "
+             f"({meta['numba_threads']} threads) · {meta['cpus']} CPUs · load average {meta['load_start']} → "
+             f"{meta['load_end']}{' · QUICK' if meta['quick'] else ''}")
+    L.append("")
+    peers = res.get("peers")
+    L.append("## (a) Comparison workload: 4 walls, 4 sonar rays/copter (walls + copters), pairwise distances, "
+             "kinematic update, no noise")
+    L.append("")
+    if peers:
+        pm = peers.get("meta", {})
+        L.append(f"VMAS {pm.get('vmas', '?')} on torch {pm.get('torch', '?')} ({pm.get('threads', '?')} threads), "
+                 f"from `{res['peers_path']}` written {pm.get('time', '?')} by `make bench-peers` "
+                 "(an earlier run on this machine, not this one).")
+    else:
+        L.append("VMAS: not measured (run `make bench-peers` to create `out/bench/peers.json`).")
+    L.append("")
+    L.append("| N | B | finkensim env-steps/s | finkensim copter-steps/s | NumPy env-steps/s | VMAS env-steps/s | "
+             "finkensim / NumPy | finkensim / VMAS | mem/env finkensim | mem/env NumPy | mem/env VMAS |")
+    L.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in res["compare"]:
+        f, npy = r["finkensim"], r["numpy"]
+        v = r.get("vmas")
+        L.append(f"| {r['N']} | {r['B']} | {_rate(f['env_steps_per_s'])} | {_rate(f['copter_steps_per_s'])} | "
+                 f"{_rate(npy['env_steps_per_s'])} | {_rate(v['env_steps_per_s']) if v else '—'} | "
+                 f"{_ratio(r['ratio_numpy'])} | {_ratio(r.get('ratio_vmas'))} | {_mem(f['peak_bytes_per_env'])} | "
+                 f"{_mem(npy['peak_bytes_per_env'])} | {_mem(v['peak_bytes_per_env']) if v else '—'} |")
+    L.append("")
+    L.append("## (b) Full FINken workload: 16-plate bending walls, sonars with error model and cross-talk, "
+             "2.5 m GMM ranging (K=100), IMU, attraction–repulsion")
+    L.append("")
+    fk = res.get("finken")
+    if fk is None:
+        L.append("skipped (--quick)")
+    else:
+        if fk["status"]:
+            L.append(f"finkensim.swarm: n/a ({fk['status']}). Rows below: the stand-in "
+                     "(World.rollout with the random-walk controller, then the batched sensors over the "
+                     "trajectory; open loop).")
+            L.append("")
+        L.append("| N | B | env-steps/s | copter-steps/s | mem/env | implementation |")
+        L.append("|---:|---:|---:|---:|---:|---|")
+        for r in fk["rows"]:
+            if "error" in r:
+                L.append(f"| {r['N']} | {r['B']} | error | | | {r['error']} |")
+            else:
+                L.append(f"| {r['N']} | {r['B']} | {_rate(r['env_steps_per_s'])} | {_rate(r['copter_steps_per_s'])} | "
+                         f"{_mem(r['peak_bytes_per_env'])} | {r['impl']} |")
+    L.append("")
+    L.append("## JIT compile time (subprocess; cold = fresh empty NUMBA_CACHE_DIR, warm = cache hit)")
+    L.append("")
+    if not res.get("compile"):
+        L.append("skipped (--quick)" if meta["quick"] else "skipped (--no-compile)")
+    else:
+        L.append("| workload | import (s) | cold first call (s) | warm first call (s) | cold process (s) | warm process (s) |")
+        L.append("|---|---:|---:|---:|---:|---:|")
+        for r in res["compile"]:
+            c, w = r["cold"], r["warm"]
+            if "error" in c or "error" in w:
+                L.append(f"| {r['workload']} | error: {c.get('error') or w.get('error')} | | | | |")
+                continue
+            L.append(f"| {r['workload']} | {w['import_s']:.2f} | {c['first_call_s']:.2f} | {w['first_call_s']:.2f} | "
+                     f"{c['process_s']:.1f} | {w['process_s']:.1f} |")
+    L.append("")
+    sc = res.get("scaling")
+    if sc:
+        L.append(sc["markdown"])
+    L.append("")
+    L.append("Methods: see `benchmarks/run.py` (timing: best of interleaved repeats; memory: tracemalloc peak "
+             "over build + 1 step ÷ B, kernel-internal numba buffers not traced; VMAS memory: ru_maxrss delta).")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="finkensim benchmarks (make bench)")
+    ap.add_argument("--quick", action="store_true", help="tiny subset, a few seconds")
+    ap.add_argument("--out", default="out/bench", help="output directory (bench.md, bench.json, scaling.png)")
+    ap.add_argument("--peers", default=None, help="peer results JSON (default: OUT/peers.json)")
+    ap.add_argument("--seconds", type=float, default=None, help="target seconds per timed call")
+    ap.add_argument("--repeats", type=int, default=None)
+    ap.add_argument("--no-compile", action="store_true", help="skip the cold/warm JIT probes")
+    ap.add_argument("--no-scaling", action="store_true", help="skip benchmarks/scaling.py")
+    ap.add_argument("--no-finken", action="store_true", help="skip workload (b)")
+    a = ap.parse_args(argv)
+
+    import numba
+
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seconds = a.seconds or (0.05 if a.quick else 0.25)
+    repeats = a.repeats or (2 if a.quick else 3)
+    ns, bs = (QUICK_N, QUICK_B) if a.quick else (FULL_N, FULL_B)
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
+    meta = dict(time=time.strftime("%Y-%m-%d %H:%M:%S"), python=platform.python_version(), numpy=np.__version__,
+                numba=numba.__version__, numba_threads=numba.get_num_threads(), cpus=os.cpu_count(),
+                load_start=" ".join(f"{x:.2f}" for x in os.getloadavg()), quick=a.quick, seconds=seconds,
+                repeats=repeats, numba_cache_dir=os.environ.get("NUMBA_CACHE_DIR", ""))
+    res: dict = dict(meta=meta)
+    res["compare"] = bench_compare(ns, bs, seconds, repeats, log)
+    peers_path = Path(a.peers) if a.peers else out / "peers.json"
+    peers = load_peers(peers_path)
+    if peers:
+        res["peers"] = {k: v for k, v in peers.items() if k != "by_config"}
+        res["peers_path"] = str(peers_path)
+        for r in res["compare"]:
+            v = peers["by_config"].get((r["N"], r["B"]))
+            if v:
+                r["vmas"] = v
+                r["ratio_vmas"] = r["finkensim"]["env_steps_per_s"] / v["env_steps_per_s"]
+    if not a.quick and not a.no_finken:
+        rows, status = bench_finken(ns, bs, seconds, repeats, log)
+        res["finken"] = dict(rows=rows, status=status)
+    if not a.quick and not a.no_compile:
+        probes = ["compare"] + ([] if a.no_finken else ["finken"])
+        res["compile"] = compile_probes(probes, log)
+    if not a.no_scaling:
+        from . import scaling
+
+        res["scaling"] = scaling.run(quick=a.quick, out_dir=out, log=log)
+    meta["load_end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    md = report(res)
+    (out / "bench.md").write_text(md)
+    (out / "bench.json").write_text(json.dumps(res, indent=1, default=str))
+    print(md)
+    print(f"saved {out / 'bench.md'} and {out / 'bench.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

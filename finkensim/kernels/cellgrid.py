@@ -1,0 +1,433 @@
+"""Uniform cell grid for range-limited neighbour queries and short raycasts (numba).
+
+Why: every copter-to-copter loop in a step (ranging within 2.5 m, sonar echoes within 3 m,
+contacts, repulsion) is O(N) per copter when done by brute force, so a step costs O(N²). At a
+fixed density (copters per m²) only a constant number of copters lies within a fixed range, so a
+grid makes the cost per copter-step constant: build O(N + C), each query O(copters in the scanned
+cells).
+
+**Layout.** Cells of side ``cell`` (m) tile the rectangle [x0, x0 + nx·cell) × [y0, y0 + ny·cell),
+row-major: cell id = cy·nx + cx. A point outside the rectangle goes to the nearest edge cell (the
+cell index is clamped), so every finite point is stored and every query stays exact; the grid just
+gets slower when many points lie outside. Build is a stable counting sort of the N copters by cell:
+
+- ``cell_start`` (C + 1,) int64: copters of cell c are sorted slots cell_start[c] … cell_start[c+1]−1;
+- ``order`` (N,) int64: copter index of each sorted slot (ascending within a cell);
+- ``spos`` (N, 2) float64: positions in sorted order (a copy, so a query reads contiguous memory —
+  the cells cx0…cx1 of one grid row are one contiguous slot range);
+- ``cell_of`` (N,) int64: work buffer (cell of each copter).
+
+**Queries** scan the grid rows cy0…cy1 of the query box [q − r, q + r] and, in each row, only the
+cells that the disc of radius r reaches at that row's nearest edge (the chord), as one contiguous
+slot range (:func:`row_slots`). Cell coordinates are clamped and monotone in the coordinate, and the
+box is widened by a relative 1e-9 against rounding, so any point within r of q is scanned, for any
+cell size; membership is then decided by the exact squared-distance test. The hit/miss decision is
+branch-free (always write, advance the count on a hit), since a data-dependent branch there is
+mispredicted about half the time. Iterating the queries in sorted-slot order (copter ``order[k]``,
+centre ``spos[k]``) keeps consecutive queries on the same cells. Measured (benchmarks/scaling.py):
+cell side = query range was fastest (vs r/2 and r/3).
+
+**Raycasts.** :func:`raycast_fan_env` casts R rays from one origin against the copter circles and
+returns the nearest hit of each ray within ``max_range``. It does not walk cells along each ray: it
+scans the copters within max_range + radius of the origin once and tests every ray of the fan
+against each of them. That prefilter is exact: a hit at distance t ≤ max_range is a point of the
+circle t from the origin, so the circle's centre is at most t + radius ≤ max_range + radius away.
+It is also enough for a flat cost: the candidates are the copters in a disc of fixed radius, a
+constant number at fixed density, and one scan serves all rays of a copter's sonars (4 here). A
+per-ray cell walk (DDA) would test fewer circles per ray — those in a band of width ~2·(radius +
+cell) along the ray instead of the whole disc — which is a constant factor, not a different
+scaling, and it would walk the 3 × 3 neighbourhoods of every cell the ray crosses for each ray
+separately. Hits beyond ``max_range`` are not reported (t = inf), which is what a sonar needs (no
+echo within range reads max_range).
+
+**Kernels.** ``*_env`` functions are ``inline="always"`` per-environment kernels (arrays and
+numbers only) for compiled rollouts: allocate the grid buffers once per environment
+(:func:`grid_buffers`), call :func:`build_env` each step, then query. The batched wrappers
+(:func:`build_grid`, :func:`neighbour_counts`, :func:`neighbours_within`, :func:`raycast_fan`) loop
+over the leading environment axis with ``prange``. NumPy references are in the tests.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+
+__all__ = [
+    "GridSpec", "grid_spec", "grid_buffers",
+    "cell_coord", "build_env", "row_slots", "query_env", "count_env", "raycast_fan_env",
+    "build_grid", "neighbour_counts", "neighbours_within", "raycast_fan",
+]
+
+
+class GridSpec(NamedTuple):
+    """Grid geometry: origin x0, y0 (m), cell side (m), inv_cell (1/m), nx, ny cells (C = nx·ny)."""
+
+    x0: float
+    y0: float
+    cell: float
+    inv_cell: float
+    nx: int
+    ny: int
+
+    @property
+    def n_cells(self) -> int:
+        return self.nx * self.ny
+
+
+def grid_spec(width: float, length: float, cell: float, x0: float = 0.0, y0: float = 0.0,
+              max_cells: int = 1 << 24) -> GridSpec:
+    """A grid covering [x0, x0 + width] × [y0, y0 + length] with cells of side ``cell`` m.
+
+    Use the query range as the cell side (a query then scans ≤ 3 × 3 cells). The number of cells is
+    capped at ``max_cells`` by enlarging the cell (a very small cell in a huge arena would make the
+    build O(C) dominate).
+    """
+    if not (cell > 0.0 and math.isfinite(cell)):
+        raise ValueError(f"cell = {cell!r}: expected a finite cell side > 0 m")
+    if not (width > 0.0 and length > 0.0 and math.isfinite(width) and math.isfinite(length)):
+        raise ValueError(f"width, length = {width!r}, {length!r}: expected finite extents > 0 m")
+    cell = float(cell)
+    while True:
+        nx = max(1, int(math.ceil(width / cell)))
+        ny = max(1, int(math.ceil(length / cell)))
+        if nx * ny <= max_cells:
+            break
+        cell *= 2.0
+    return GridSpec(float(x0), float(y0), cell, 1.0 / cell, nx, ny)
+
+
+def grid_buffers(n: int, spec: GridSpec):
+    """Work buffers of one environment: (cell_start (C+1,), order (N,), spos (N, 2), cell_of (N,))."""
+    return (np.zeros(spec.n_cells + 1, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros((n, 2)),
+            np.zeros(n, dtype=np.int64))
+
+
+# The query box is widened by this relative amount so that rounding of q ± r can never drop a cell
+# holding a point whose computed squared distance is ≤ r² (the exact test decides membership).
+BOX_PAD = 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# per-environment kernels
+
+
+@njit(cache=True, inline="always")
+def cell_coord(v, v0, inv_cell, n):
+    """Cell coordinate (0 … n−1) of coordinate v (m), clamped to the grid (monotone in v)."""
+    f = (v - v0) * inv_cell
+    if f < 0.0:  # also handles -inf
+        return 0
+    if f >= n:  # also handles +inf and huge values before the int conversion
+        return n - 1
+    return int(f)
+
+
+@njit(cache=True, inline="always")
+def build_env(pos_b, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of):
+    """Counting sort of one environment's copters pos_b (N, 2) into cells; fills the grid buffers.
+
+    Stable: copters of one cell keep ascending index order. O(N + C).
+    """
+    N = pos_b.shape[0]
+    C = nx * ny
+    for c in range(C + 1):
+        cell_start[c] = 0
+    for i in range(N):
+        c = cell_coord(pos_b[i, 1], y0, inv_cell, ny) * nx + cell_coord(pos_b[i, 0], x0, inv_cell, nx)
+        cell_of[i] = c
+        cell_start[c] += 1
+    # exclusive prefix sum: cell_start[c] = first slot of cell c
+    acc = 0
+    for c in range(C):
+        k = cell_start[c]
+        cell_start[c] = acc
+        acc += k
+    cell_start[C] = acc
+    # scatter (cell_start[c] advances to the end of cell c = start of c + 1) ...
+    for i in range(N):
+        c = cell_of[i]
+        k = cell_start[c]
+        order[k] = i
+        spos[k, 0] = pos_b[i, 0]
+        spos[k, 1] = pos_b[i, 1]
+        cell_start[c] = k + 1
+    # ... so shift back by one cell
+    for c in range(C, 0, -1):
+        cell_start[c] = cell_start[c - 1]
+    cell_start[0] = 0
+
+
+@njit(cache=True, inline="always")
+def row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start):
+    """Sorted-slot range (k0, k1) of grid row cy that can hold points within rb of (qx, qy).
+
+    The row's cells are trimmed to the chord of the disc at the row's nearest edge (so a query scans
+    about the disc plus a band one cell wide, not its bounding square). Edge rows extend to ±inf
+    (they hold the clamped points); ``pad`` (m) widens the band against rounding. (0, 0) if none.
+    """
+    dy = 0.0
+    if cy > 0:
+        lo = y0 + cy * cell
+        if qy < lo:
+            dy = lo - qy
+    if cy < ny - 1:
+        hi = y0 + (cy + 1) * cell
+        if qy > hi:
+            dy = qy - hi
+    dy -= pad
+    if dy < 0.0:
+        dy = 0.0
+    if dy > rb:
+        return 0, 0
+    half = np.sqrt(rb * rb - dy * dy) + pad
+    row = cy * nx
+    return cell_start[row + cell_coord(qx - half, x0, inv_cell, nx)], \
+        cell_start[row + cell_coord(qx + half, x0, inv_cell, nx) + 1]
+
+
+@njit(cache=True, inline="always")
+def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos, out_idx, out_d2):
+    """Copters within r (squared distance ≤ r²) of point (qx, qy), except copter ``skip`` (−1: none).
+
+    Writes their indices into out_idx and squared distances into out_d2 (in grid order, not sorted;
+    both need room for every copter that can be within r — N in the worst case) and returns how
+    many. Needs the buffers of :func:`build_env`. Querying the copters in sorted-slot order
+    (``order[k]`` for k = 0 … N−1) keeps consecutive queries in the same cells (cache friendly).
+    """
+    pad = BOX_PAD * (r + abs(qx) + abs(qy))
+    rb = r + pad
+    cell = 1.0 / inv_cell
+    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
+    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    r2 = r * r
+    n = 0
+    for cy in range(cy0, cy1 + 1):
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        for k in range(k0, k1):
+            dx = spos[k, 0] - qx
+            dy = spos[k, 1] - qy
+            d2 = dx * dx + dy * dy
+            j = order[k]
+            # branch-free compaction: always write, advance only on a hit (a hit/miss branch would be
+            # mispredicted about half the time). n ≤ candidates seen so far < N, so the write fits.
+            out_idx[n] = j
+            out_d2[n] = d2
+            n += (d2 <= r2) & (j != skip)
+    return n
+
+
+@njit(cache=True, inline="always")
+def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+    """Number of copters within r of (qx, qy), except ``skip`` (as :func:`query_env`, no output)."""
+    pad = BOX_PAD * (r + abs(qx) + abs(qy))
+    rb = r + pad
+    cell = 1.0 / inv_cell
+    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
+    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    r2 = r * r
+    n = 0
+    for cy in range(cy0, cy1 + 1):
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        for k in range(k0, k1):
+            dx = spos[k, 0] - qx
+            dy = spos[k, 1] - qy
+            n += (dx * dx + dy * dy <= r2) & (order[k] != skip)
+    return n
+
+
+@njit(cache=True, inline="always")
+def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
+                    spos, out_t, out_j):
+    """Nearest copter-circle hit of each ray of a fan, within max_range.
+
+    Rays O + t·dirs[k] (dirs (R, 2) unit vectors) against the circles (centre, ``radius``) of every
+    copter except ``skip``. Writes out_t (R,) m (``inf`` if no hit at t ≤ max_range) and out_j (R,)
+    the copter hit (−1 if none); a tie keeps the lower copter index. Scans only the copters within
+    max_range + radius of O (exact; see the module docstring).
+    """
+    R = dirs.shape[0]
+    for k in range(R):
+        out_t[k] = np.inf
+        out_j[k] = -1
+    lim = max_range + radius
+    pad = BOX_PAD * (lim + abs(ox) + abs(oy))
+    lim += pad
+    cell = 1.0 / inv_cell
+    cy0 = cell_coord(oy - lim, y0, inv_cell, ny)
+    cy1 = cell_coord(oy + lim, y0, inv_cell, ny)
+    lim2 = lim * lim
+    r2 = radius * radius
+    for cy in range(cy0, cy1 + 1):
+        k0, k1 = row_slots(cy, ox, oy, lim, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        for s in range(k0, k1):
+            cx = spos[s, 0]
+            cyy = spos[s, 1]
+            fx = ox - cx
+            fy = oy - cyy
+            f2 = fx * fx + fy * fy
+            if f2 > lim2:
+                continue
+            j = order[s]
+            if j == skip:
+                continue
+            # ray_circle with its per-circle terms hoisted out of the ray loop (same operations, same
+            # results): b = (O − C)·D, c = |O − C|² − r², first root ahead of the origin
+            c = f2 - r2
+            for k in range(R):
+                b = fx * dirs[k, 0] + fy * dirs[k, 1]
+                disc = b * b - c
+                if disc < 0.0:
+                    continue
+                sq = np.sqrt(disc)
+                t = -b - sq
+                if t < 0.0:
+                    t = -b + sq
+                    if t < 0.0:
+                        continue
+                if t <= max_range and (t < out_t[k] or (t == out_t[k] and j < out_j[k])):
+                    out_t[k] = t
+                    out_j[k] = j
+
+
+# ---------------------------------------------------------------------------------------------
+# batched wrappers
+
+
+def _check_pos(pos) -> np.ndarray:
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[2] != 2:
+        raise ValueError(f"pos has shape {pos.shape}: expected (B, N, 2) m")
+    if not np.all(np.isfinite(pos)):
+        raise ValueError("pos: coordinates must be finite")
+    return pos
+
+
+@njit(cache=True, parallel=True)
+def _build_batch(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+    B, N, _ = pos.shape
+    for b in prange(B):
+        cell_of = np.empty(N, dtype=np.int64)
+        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start[b], order[b], spos[b], cell_of)
+
+
+@njit(cache=True, parallel=True)
+def _counts_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, out):
+    B, N, _ = pos.shape
+    for b in prange(B):
+        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
+        order = np.empty(N, dtype=np.int64)
+        spos = np.empty((N, 2))
+        cell_of = np.empty(N, dtype=np.int64)
+        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        for s in range(N):  # in cell order (cache friendly)
+            i = order[s]
+            skip = i if exclude_self else -1
+            out[b, i] = count_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start,
+                                  order, spos)
+
+
+@njit(cache=True, parallel=True)
+def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, idx, d2):
+    B, N, _ = pos.shape
+    K = idx.shape[2]
+    for b in prange(B):
+        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
+        order = np.empty(N, dtype=np.int64)
+        spos = np.empty((N, 2))
+        cell_of = np.empty(N, dtype=np.int64)
+        tmp_i = np.empty(N, dtype=np.int64)
+        tmp_d = np.empty(N)
+        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        for s in range(N):  # in cell order (cache friendly)
+            i = order[s]
+            skip = i if exclude_self else -1
+            n = query_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
+                          spos, tmp_i, tmp_d)
+            counts[b, i] = n
+            for k in range(min(n, K)):
+                idx[b, i, k] = tmp_i[k]
+                d2[b, i, k] = tmp_d[k]
+            for k in range(min(n, K), K):
+                idx[b, i, k] = -1
+                d2[b, i, k] = np.inf
+
+
+@njit(cache=True, parallel=True)
+def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, x0, y0, inv_cell, nx, ny, out_t, out_j):
+    B, N, _ = pos.shape
+    R = ray_yaw.shape[0]
+    for b in prange(B):
+        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
+        order = np.empty(N, dtype=np.int64)
+        spos = np.empty((N, 2))
+        cell_of = np.empty(N, dtype=np.int64)
+        dirs = np.empty((R, 2))
+        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        for s in range(N):  # in cell order (cache friendly)
+            i = order[s]
+            for k in range(R):
+                dirs[k, 0] = np.cos(yaw[b, i] + ray_yaw[k])
+                dirs[k, 1] = np.sin(yaw[b, i] + ray_yaw[k])
+            raycast_fan_env(pos[b, i, 0], pos[b, i, 1], dirs, max_range, radius, i, x0, y0, inv_cell, nx, ny,
+                            cell_start, order, spos, out_t[b, i], out_j[b, i])
+
+
+def build_grid(pos, spec: GridSpec):
+    """Grids of B environments: pos (B, N, 2) m → (cell_start (B, C+1), order (B, N), spos (B, N, 2))."""
+    pos = _check_pos(pos)
+    B, N, _ = pos.shape
+    cell_start = np.empty((B, spec.n_cells + 1), dtype=np.int64)
+    order = np.empty((B, N), dtype=np.int64)
+    spos = np.empty((B, N, 2))
+    _build_batch(pos, spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, cell_start, order, spos)
+    return cell_start, order, spos
+
+
+def neighbour_counts(pos, r: float, spec: GridSpec, exclude_self: bool = True) -> np.ndarray:
+    """Number of copters within r (m) of each copter: (B, N) int64 (itself excluded by default)."""
+    pos = _check_pos(pos)
+    out = np.empty(pos.shape[:2], dtype=np.int64)
+    _counts_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, out)
+    return out
+
+
+def neighbours_within(pos, r: float, spec: GridSpec, max_neighbours: int | None = None,
+                      exclude_self: bool = True):
+    """Fixed-capacity neighbour lists of every copter: copters within r (m).
+
+    Returns (counts (B, N) int64, idx (B, N, K) int64, d2 (B, N, K) m²): the first min(count, K)
+    entries of row (b, i) are its neighbours (grid order, not sorted) and their squared distances;
+    the rest are −1 / inf. ``counts`` is the true number even when it exceeds K (the list is then
+    truncated: check ``counts.max() <= K``). K = ``max_neighbours``, by default the largest count
+    (one extra counting pass).
+    """
+    pos = _check_pos(pos)
+    B, N, _ = pos.shape
+    if max_neighbours is None:
+        c = neighbour_counts(pos, r, spec, exclude_self)
+        max_neighbours = int(c.max()) if c.size else 0
+    K = int(max_neighbours)
+    counts = np.empty((B, N), dtype=np.int64)
+    idx = np.empty((B, N, K), dtype=np.int64)
+    d2 = np.empty((B, N, K))
+    _neighbours_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny,
+                      counts, idx, d2)
+    return counts, idx, d2
+
+
+def raycast_fan(pos, yaw, ray_yaw, max_range: float, radius: float, spec: GridSpec):
+    """Rays from every copter centre, at headings yaw (B, N) + ray_yaw (R,) rad, against the other copters'
+    circles (``radius`` m): (t (B, N, R) m, inf if no hit within max_range; j (B, N, R) copter hit or −1)."""
+    pos = _check_pos(pos)
+    B, N, _ = pos.shape
+    yaw = np.ascontiguousarray(np.broadcast_to(np.asarray(yaw, dtype=np.float64), (B, N)))
+    ray_yaw = np.ascontiguousarray(np.asarray(ray_yaw, dtype=np.float64).reshape(-1))
+    R = ray_yaw.shape[0]
+    out_t = np.empty((B, N, R))
+    out_j = np.empty((B, N, R), dtype=np.int64)
+    _raycast_batch(pos, yaw, ray_yaw, float(max_range), float(radius), spec.x0, spec.y0, spec.inv_cell, spec.nx,
+                   spec.ny, out_t, out_j)
+    return out_t, out_j
