@@ -14,8 +14,10 @@ for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments.
 **Timing.** Each implementation is warmed up (compiled) first, the number of steps per timed call
 is calibrated to ≈ ``--seconds``, then the implementations of one configuration are timed in turn,
 ``--repeats`` times interleaved, and the fastest call counts (the least disturbed by other jobs).
-env-steps/s = B·T / time; copter-steps/s = N·B·T / time. numba uses all cores (2 here) across
-environments; NumPy is single-threaded as it comes.
+env-steps/s = B·T / time; copter-steps/s = N·B·T / time. finkensim's kernels run with 1 and with
+all (2) numba threads and the faster counts (column "threads"), as VMAS's torch threads do in
+``make bench-peers``: on a machine shared with other jobs a second thread can lose more to waiting
+for a core than it gains. NumPy is single-threaded as it comes.
 
 **JIT compile time**, separately, in subprocesses (``benchmarks.compile_probe``): *cold* = a fresh
 empty NUMBA_CACHE_DIR, so the first call compiles and writes the cache; *warm* = the same directory
@@ -85,6 +87,26 @@ def measure(runners: dict, seconds: float, repeats: int) -> dict:
     return {name: dict(s_per_step=best[name], steps=steps[name]) for name in runners}
 
 
+def thread_variants(name: str, fn, threads) -> dict:
+    """``{name@k: run}`` for each numba thread count k (the fastest is reported, see module doc)."""
+    import numba
+
+    def make(k):
+        def run(T):
+            numba.set_num_threads(k)
+            fn(T)
+        return run
+
+    return {f"{name}@{k}": make(k) for k in threads}
+
+
+def best_of_threads(m: dict, name: str) -> tuple[float, int, dict]:
+    """(seconds per step, threads, {threads: steps/s factor}) of the fastest ``name@k`` in ``m``."""
+    opts = {int(k.split("@")[1]): v for k, v in m.items() if k.startswith(name + "@")}
+    k = min(opts, key=lambda t: opts[t]["s_per_step"])
+    return opts[k]["s_per_step"], k, {str(t): 1.0 / v["s_per_step"] for t, v in opts.items()}
+
+
 def peak_bytes(build, steps: int = 1) -> int:
     """tracemalloc peak (bytes) while building a workload with ``build()`` and running ``steps`` steps."""
     tracemalloc.start()
@@ -101,7 +123,7 @@ def peak_bytes(build, steps: int = 1) -> int:
 # workloads
 
 
-def bench_compare(ns, bs, seconds, repeats, log) -> list[dict]:
+def bench_compare(ns, bs, seconds, repeats, log, threads=(1, 2)) -> list[dict]:
     from .workloads import CompareWorkload
 
     rows = []
@@ -110,11 +132,16 @@ def bench_compare(ns, bs, seconds, repeats, log) -> list[dict]:
             wls = {impl: CompareWorkload(n, b, impl) for impl in ("finkensim", "numpy")}
             for wl in wls.values():
                 wl.run(1)  # compile / first touch
-            m = measure({k: wl.run for k, wl in wls.items()}, seconds, repeats)
+            runners = dict(thread_variants("finkensim", wls["finkensim"].run, threads), numpy=wls["numpy"].run)
+            m = measure(runners, seconds, repeats)
             row = dict(N=n, B=b)
             for impl in wls:
-                s = m[impl]["s_per_step"]
-                row[impl] = dict(env_steps_per_s=b / s, copter_steps_per_s=n * b / s, steps=m[impl]["steps"],
+                if impl == "finkensim":
+                    s, k, by = best_of_threads(m, impl)
+                    extra = dict(threads=k, steps_per_s_by_threads={t: b * v for t, v in by.items()})
+                else:
+                    s, extra = m[impl]["s_per_step"], dict(threads=1)
+                row[impl] = dict(env_steps_per_s=b / s, copter_steps_per_s=n * b / s, **extra,
                                  peak_bytes_per_env=peak_bytes(lambda impl=impl: CompareWorkload(n, b, impl)) / b)
             row["ratio_numpy"] = row["finkensim"]["env_steps_per_s"] / row["numpy"]["env_steps_per_s"]
             rows.append(row)
@@ -123,7 +150,7 @@ def bench_compare(ns, bs, seconds, repeats, log) -> list[dict]:
     return rows
 
 
-def bench_finken(ns, bs, seconds, repeats, log) -> tuple[list[dict], str]:
+def bench_finken(ns, bs, seconds, repeats, log, threads=(1, 2)) -> tuple[list[dict], str]:
     import warnings
 
     from .workloads import FinkenStandIn, FinkenSwarm, swarm_status
@@ -143,10 +170,11 @@ def bench_finken(ns, bs, seconds, repeats, log) -> tuple[list[dict], str]:
                     rows.append(dict(N=n, B=b, impl=label, error=f"{type(e).__name__}: {e}"))
                     log(f"(b) N={n:4d} B={b:5d}  failed: {type(e).__name__}: {e}")
                     continue
-                s = measure({"finken": wl.run}, seconds, repeats)["finken"]
+                s, k, by = best_of_threads(measure(thread_variants("finken", wl.run, threads), seconds, repeats),
+                                           "finken")
                 mem = peak_bytes(lambda: cls(n, b)) / b
-            rows.append(dict(N=n, B=b, impl=label, env_steps_per_s=b / s["s_per_step"],
-                             copter_steps_per_s=n * b / s["s_per_step"], steps=s["steps"], peak_bytes_per_env=mem))
+            rows.append(dict(N=n, B=b, impl=label, env_steps_per_s=b / s, copter_steps_per_s=n * b / s, threads=k,
+                             steps_per_s_by_threads={t: b * v for t, v in by.items()}, peak_bytes_per_env=mem))
             log(f"(b) N={n:4d} B={b:5d}  {rows[-1]['env_steps_per_s']:12.0f} env-steps/s  [{label}]")
     return rows, status or ""
 
@@ -234,14 +262,16 @@ def report(res: dict) -> str:
         L.append("VMAS: not measured (run `make bench-peers` to create `out/bench/peers.json`).")
     L.append("")
     L.append("| N | B | finkensim env-steps/s | finkensim copter-steps/s | NumPy env-steps/s | VMAS env-steps/s | "
-             "finkensim / NumPy | finkensim / VMAS | mem/env finkensim | mem/env NumPy | mem/env VMAS |")
-    L.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+             "finkensim / NumPy | finkensim / VMAS | threads finkensim / VMAS | mem/env finkensim | mem/env NumPy | "
+             "mem/env VMAS |")
+    L.append("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in res["compare"]:
         f, npy = r["finkensim"], r["numpy"]
         v = r.get("vmas")
         L.append(f"| {r['N']} | {r['B']} | {_rate(f['env_steps_per_s'])} | {_rate(f['copter_steps_per_s'])} | "
                  f"{_rate(npy['env_steps_per_s'])} | {_rate(v['env_steps_per_s']) if v else '—'} | "
-                 f"{_ratio(r['ratio_numpy'])} | {_ratio(r.get('ratio_vmas'))} | {_mem(f['peak_bytes_per_env'])} | "
+                 f"{_ratio(r['ratio_numpy'])} | {_ratio(r.get('ratio_vmas'))} | "
+                 f"{f['threads']} / {v.get('threads', '?') if v else '—'} | {_mem(f['peak_bytes_per_env'])} | "
                  f"{_mem(npy['peak_bytes_per_env'])} | {_mem(v['peak_bytes_per_env']) if v else '—'} |")
     L.append("")
     L.append("## (b) Full FINken workload: 16-plate bending walls, sonars with error model and cross-talk, "
@@ -256,14 +286,14 @@ def report(res: dict) -> str:
                      "(World.rollout with the random-walk controller, then the batched sensors over the "
                      "trajectory; open loop).")
             L.append("")
-        L.append("| N | B | env-steps/s | copter-steps/s | mem/env | implementation |")
-        L.append("|---:|---:|---:|---:|---:|---|")
+        L.append("| N | B | env-steps/s | copter-steps/s | threads | mem/env | implementation |")
+        L.append("|---:|---:|---:|---:|---:|---:|---|")
         for r in fk["rows"]:
             if "error" in r:
-                L.append(f"| {r['N']} | {r['B']} | error | | | {r['error']} |")
+                L.append(f"| {r['N']} | {r['B']} | error | | | | {r['error']} |")
             else:
                 L.append(f"| {r['N']} | {r['B']} | {_rate(r['env_steps_per_s'])} | {_rate(r['copter_steps_per_s'])} | "
-                         f"{_mem(r['peak_bytes_per_env'])} | {r['impl']} |")
+                         f"{r['threads']} | {_mem(r['peak_bytes_per_env'])} | {r['impl']} |")
     L.append("")
     L.append("## JIT compile time (subprocess; cold = fresh empty NUMBA_CACHE_DIR, warm = cache hit)")
     L.append("")
@@ -317,7 +347,9 @@ def main(argv=None) -> int:
                 load_start=" ".join(f"{x:.2f}" for x in os.getloadavg()), quick=a.quick, seconds=seconds,
                 repeats=repeats, numba_cache_dir=os.environ.get("NUMBA_CACHE_DIR", ""))
     res: dict = dict(meta=meta)
-    res["compare"] = bench_compare(ns, bs, seconds, repeats, log)
+    max_threads = numba.get_num_threads()
+    threads = tuple(sorted({1, max_threads}))
+    res["compare"] = bench_compare(ns, bs, seconds, repeats, log, threads)
     peers_path = Path(a.peers) if a.peers else out / "peers.json"
     peers = load_peers(peers_path)
     if peers:
@@ -329,7 +361,7 @@ def main(argv=None) -> int:
                 r["vmas"] = v
                 r["ratio_vmas"] = r["finkensim"]["env_steps_per_s"] / v["env_steps_per_s"]
     if not a.quick and not a.no_finken:
-        rows, status = bench_finken(ns, bs, seconds, repeats, log)
+        rows, status = bench_finken(ns, bs, seconds, repeats, log, threads)
         res["finken"] = dict(rows=rows, status=status)
     if not a.quick and not a.no_compile:
         probes = ["compare"] + ([] if a.no_finken else ["finken"])
@@ -338,6 +370,7 @@ def main(argv=None) -> int:
         from . import scaling
 
         res["scaling"] = scaling.run(quick=a.quick, out_dir=out, log=log)
+    numba.set_num_threads(max_threads)
     meta["load_end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
     md = report(res)
     (out / "bench.md").write_text(md)

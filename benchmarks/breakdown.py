@@ -1,0 +1,207 @@
+"""Where the time of the full FINken step goes: ``python -m benchmarks.breakdown [--n 10 100]``.
+
+Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
+B environments, ``time.thread_time``, best of 5), on states taken from a real run (the swarm — or,
+without ``finkensim.swarm``, the world rollout — after 100 steps, so plates swing and copters are
+spread). Reports µs per env-step and the share of the sum. Not part of ``make bench``; numbers for
+the reply / issue, and a check after optimising a kernel.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+import numpy as np
+from numba import njit
+
+from finkensim.arena import walls_step_env
+from finkensim.kernels.geometry import nearest_body_distance_env
+from finkensim.kernels.rng import STREAM_RANGING, counter_key
+from finkensim.sensors.imu import imu_env
+from finkensim.sensors.ranging import MODE_SEED, _fast_reading, _seed_reading
+from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
+from finkensim.world import step_env
+
+
+@njit(cache=True)
+def t_world(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_col, wc, col, cp, hp, seg_a, seg_b, lever,
+            dt, reps):
+    B, N, _ = pos.shape
+    dist_buf = np.empty(seg_a.shape[0])
+    gap = np.empty(N)
+    cmd_v = np.zeros((N, 2))
+    cmd_w = np.zeros(N)
+    for _ in range(reps):
+        for b in range(B):
+            for n in range(N):
+                cmd_v[n, 0] = 0.2 * np.cos(yaw[b, n])
+                cmd_v[n, 1] = 0.2 * np.sin(yaw[b, n])
+            step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
+                     in_col[b], wc[b], col[b], cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt, dist_buf, gap)
+
+
+@njit(cache=True)
+def t_nearest(pos, seg_a, seg_b, radius, reps):
+    out = np.empty(seg_a.shape[0])
+    for _ in range(reps):
+        for b in range(pos.shape[0]):
+            nearest_body_distance_env(seg_a, seg_b, pos[b], radius, out)
+
+
+@njit(cache=True)
+def t_hinges(theta, omega, integ, dist, hp, lever, dt, reps):
+    th = theta.copy()
+    om = omega.copy()
+    ig = integ.copy()
+    for _ in range(reps):
+        for b in range(theta.shape[0]):
+            for s in range(theta.shape[1]):  # restart from the recorded state each rep
+                th[b, s] = theta[b, s]
+                om[b, s] = omega[b, s]
+                ig[b, s] = integ[b, s]
+            walls_step_env(th[b], om[b], ig[b], dist[b], hp, lever, dt)
+
+
+@njit(cache=True)
+def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp, seed, reps, ideal_only):
+    B, N, _ = pos.shape
+    S = plate_a.shape[0]
+    pa = np.empty((S, 2))
+    pb = np.empty((S, 2))
+    buf = np.empty((N, N_SONARS, 4))
+    dist = np.empty((N, N_SONARS))
+    kind = np.empty((N, N_SONARS), dtype=np.int64)
+    hit = np.empty((N, N_SONARS, 2))
+    slot = np.zeros(N, dtype=np.int64)
+    out = np.empty((N, N_SONARS))
+    for r in range(reps):
+        for b in range(B):
+            displaced_plates_env(theta[b], plate_a, plate_b, normal, lever, pa, pb)
+            if ideal_only:
+                ideal_env(pos[b], yaw[b], pa, pb, width, length, sp, buf, dist, kind, hit)
+            else:
+                ultrasonic_env(pos[b], yaw[b], pa, pb, width, length, sp, seed, b, r, buf, dist, kind, hit, slot, out)
+
+
+@njit(cache=True)
+def t_down(B, N, sp, seed, reps):
+    alt = np.full(N, sp.altitude)
+    out = np.empty(N)
+    for r in range(reps):
+        for b in range(B):
+            down_env(alt, sp, seed, b, r, out)
+
+
+@njit(cache=True)
+def t_ranging(pos, seed, p, reps):
+    B, n, _ = pos.shape
+    out = np.empty((n, n))
+    mode, max_range, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std, log_wn, half_inv_covar, seed_std = p
+    for r in range(reps):
+        for b in range(B):
+            for i in range(n):
+                key = counter_key(seed, b, r, i, STREAM_RANGING)
+                for j in range(n):
+                    if j == i:
+                        out[i, j] = 0.0
+                        continue
+                    dx = pos[b, j, 0] - pos[b, i, 0]
+                    dy = pos[b, j, 1] - pos[b, i, 1]
+                    x = np.sqrt(dx * dx + dy * dy)
+                    if x > max_range:
+                        y = max_range
+                    elif mode == MODE_SEED:
+                        y = _seed_reading(x, key, j, mean, cond_mean, log_wn, half_inv_covar, seed_std)
+                    else:
+                        y = _fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std)
+                    out[i, j] = y if y > 0.0 else 0.0
+
+
+@njit(cache=True)
+def t_imu(acc, yaw, yaw_rate, bias, ip, seed, reps):
+    B, N, _ = acc.shape
+    oa = np.empty((N, 2))
+    og = np.empty(N)
+    for r in range(reps):
+        for b in range(B):
+            imu_env(acc[b], yaw[b], yaw_rate[b], bias[b], ip, seed, b, r, oa, og)
+
+
+def _best(fn, args, reps, B, repeats=5):
+    fn(*args, 1)  # compile / warm
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        fn(*args, reps)
+        best = min(best, time.thread_time() - t0)
+    return best / (reps * B) * 1e6  # µs per env-step
+
+
+def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dict:
+    from .workloads import finken_config, swarm_status
+
+    cfg = finken_config(n, b)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        if swarm_status() is None:
+            from finkensim.swarm import SwarmSim
+
+            sim = SwarmSim(cfg)
+            st, _ = sim.rollout(sim.init(n_envs=b, seed=1), warm_steps, record=False)
+            ws, world, sp, rp, ip = st.world, sim.world, sim.sonar, sim.ranging, sim.imu
+        else:
+            from finkensim.sensors.imu import ImuModel
+            from finkensim.sensors.ranging import RangingModel
+            from finkensim.sensors.ultrasonic import SonarModel
+            from finkensim.world import World
+
+            world = World(cfg)
+            ws, _ = world.rollout(world.init(n_envs=b, seed=1), warm_steps, controller="random_walk", record=False)
+            sp, rp, ip = SonarModel.from_config(cfg), RangingModel.from_config(cfg.ranging), ImuModel.from_config(cfg.imu, world.dt)
+    a = world.arena
+    s = ws.copy()
+    dist = np.empty((b, a.seg_a.shape[0]))
+    for k in range(b):
+        nearest_body_distance_env(a.seg_a, a.seg_b, s.pos[k], world.copter_params.radius, dist[k])
+    geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp, 1)
+    rows = {
+        "world step (move, contacts, plate distances, hinges)": _best(
+            t_world, (s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
+                      s.wall_contacts, s.collisions, world.copter_params, world.hinge_params, a.seg_a, a.seg_b, a.lever,
+                      world.dt), reps, b),
+        "  of which plate distances (point–segment, S×N)": _best(
+            t_nearest, (ws.pos, a.seg_a, a.seg_b, world.copter_params.radius), reps, b),
+        "  of which hinge dynamics (S plates × substeps)": _best(
+            t_hinges, (ws.theta, ws.omega, ws.integ, dist, world.hinge_params, a.lever, world.dt), reps, b),
+        "sonar: displaced plates + raycast + error + cross-talk": _best(
+            lambda *x: t_sonar(*x, False), geo, reps, b),
+        "  of which ideal raycast (plates, net, circles)": _best(lambda *x: t_sonar(*x, True), geo, reps, b),
+        "down sonar": _best(t_down, (b, n, sp, 1), reps, b),
+        "ranging (N×N, mixture)": _best(t_ranging, (ws.pos, 1, rp.params), reps, b),
+        "IMU": _best(t_imu, (ws.acc, ws.yaw, ws.yaw_rate, np.zeros((b, n, 3)), ip, 1), reps, b),
+    }
+    at_rest = float(np.mean((ws.theta == 0.0) & (ws.omega == 0.0)))
+    return dict(N=n, B=b, us_per_env_step=rows, plates_at_rest=at_rest,
+                plates_active=float(np.mean(dist < world.hinge_params.threshold)))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=[10, 100])
+    ap.add_argument("--b", type=int, default=64)
+    a = ap.parse_args(argv)
+    for n in a.n:
+        r = breakdown(n, a.b, reps=max(1, 2000 // (n * a.b) + 2))
+        top = [k for k in r["us_per_env_step"] if not k.startswith("  ")]
+        total = sum(r["us_per_env_step"][k] for k in top)
+        print(f"\nN={n} (B={a.b}, one thread; plates within threshold {100 * r['plates_active']:.0f} %, "
+              f"exactly at rest {100 * r['plates_at_rest']:.0f} %)")
+        for k, v in r["us_per_env_step"].items():
+            share = f"{100 * v / total:5.1f} %" if not k.startswith("  ") else ""
+            print(f"  {k:58s} {v:9.2f} µs/env-step  {share}")
+        print(f"  {'sum':58s} {total:9.2f} µs/env-step = {1e3 * total / n:.0f} ns/copter-step")
+
+
+if __name__ == "__main__":
+    main()
