@@ -3,6 +3,8 @@
     finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal]
     finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
                     [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
+    finkensim gap REAL.npz [REAL2.npz ...] [--config sim.toml] [--out DIR] [--heldout NAME ...]
+    finkensim gap-validate [--cases CASE ...] [--trials N] [--flights K] [--duration S] [--out DIR]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -269,6 +271,113 @@ def cmd_sweep(args) -> int:
 
 
 # ------------------------------------------------------------------------------------------
+# finkensim gap / gap-validate
+# ------------------------------------------------------------------------------------------
+
+def _add_gap(sub) -> None:
+    p = sub.add_parser(
+        "gap", help="diagnose the sim-to-real gap of real flight logs",
+        description="Replay real flight logs in the simulator, find where simulated and real sensor data disagree, "
+                    "which catalogued effect explains it and how far the gap shrinks on held-out flights. Writes "
+                    "DIR/report.json (spec/gap-report.md), DIR/report.md and figures.")
+    p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (spec/flightlog.md)")
+    p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
+    p.add_argument("--out", default="out/gap", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
+                   help="held-out flights by file name (default: every other flight; one flight: its second half)")
+    p.add_argument("--effects", nargs="+", default=None, metavar="EFFECT", help="only try these catalogued effects")
+    p.add_argument("--no-progress", action="store_true", help="no progress messages")
+    p.set_defaults(func=cmd_gap)
+
+
+def cmd_gap(args) -> int:
+    prog = args.prog
+    from .config import ConfigError, load_config
+    from .flightlog import FlightLogError, load
+    from .gap.diagnose import Diagnosis, run_diagnosis
+    from .gap.replay import GapInputError
+    from .gap.report import write_report
+
+    _use_agg()
+    cfg = load_config(None)
+    if args.config is not None:
+        cfg = _load_scenario_arg(prog, args.config)
+    logs, names = [], []
+    for path in args.logs:
+        try:
+            logs.append(load(path))
+        except FlightLogError as exc:
+            raise UsageError(prog, str(exc)) from None
+        names.append(Path(path).name)
+    if len(set(names)) != len(names):
+        raise UsageError(prog, f"flight file names must be unique (they name the flights): {names}")
+    say = None if args.no_progress else (lambda msg: print(f"{prog}: {msg}", file=sys.stderr, flush=True))
+    t0 = time.perf_counter()
+    try:
+        diag = Diagnosis(logs, names, cfg, heldout=args.heldout, progress=say)
+        report = run_diagnosis(diag, args.effects)
+    except (GapInputError, ConfigError) as exc:
+        raise UsageError(prog, str(exc)) from None
+    try:
+        paths = write_report(report, args.out)
+    except OSError as exc:
+        raise UsageError(prog, f"cannot write to {args.out!r}: {exc.strerror or exc}") from None
+    v = report["verdict"]
+    if not v["significant_gap"]:
+        verdict = "no significant gap"
+    elif v["unexplained"]:
+        verdict = "significant gap, unexplained by the catalogue"
+    else:
+        verdict = f"{v['effect']} explains it (held-out shrink {100 * v['shrink_heldout']:.0f} %)"
+    print(f"{prog}: gap {report['gap_before']:.4f}: {verdict}")
+    print(f"{prog}: wrote {paths['json']} and {paths['md']} in {time.perf_counter() - t0:.1f} s")
+    return EXIT_OK
+
+
+def _add_gap_validate(sub) -> None:
+    p = sub.add_parser(
+        "gap-validate", help="check the gap diagnosis on simulated flights with a withheld effect",
+        description="Generate 'real' flights with one catalogued effect switched on at a random strength (plus tracking "
+                    "noise), diagnose them with a model that lacks it, and print the confusion matrix; also the null "
+                    "case (nothing withheld) and a foreign effect outside the catalogue (must be unexplained).")
+    p.add_argument("--cases", nargs="+", default=None, metavar="CASE", help="cases to run (default: all)")
+    p.add_argument("--trials", type=int, default=3, metavar="N", help="trials per case (default: %(default)s)")
+    p.add_argument("--flights", type=int, default=2, metavar="K", help="flights per trial (default: %(default)s)")
+    p.add_argument("--duration", type=float, default=60.0, metavar="S", help="seconds per flight (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="first trial seed (default: %(default)s)")
+    p.add_argument("--out", default="out/gap-validate", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_gap_validate)
+
+
+def cmd_gap_validate(args) -> int:
+    prog = args.prog
+    from .gap.validate import CASES, confusion, run_case
+
+    cases = args.cases or list(CASES)
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)}")
+    if args.trials < 1 or args.flights < 1 or not args.duration > 0:
+        raise UsageError(prog, "--trials and --flights must be >= 1 and --duration > 0")
+    _use_agg()
+    from tqdm import tqdm
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    jobs = [(c, args.seed + t) for c in cases for t in range(args.trials)]
+    for case, seed in tqdm(jobs, desc="gap-validate", disable=args.no_progress, file=sys.stderr):
+        rows.append(run_case(case, seed, n_flights=args.flights, duration=args.duration))
+    table, md = confusion(rows)
+    table.to_csv(out / "results.csv", index=False)
+    (out / "matrix.md").write_text(md)
+    print(md)
+    print(f"{prog}: wrote {out / 'matrix.md'} and {out / 'results.csv'}")
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------------------
 # entry point
 # ------------------------------------------------------------------------------------------
 
@@ -282,7 +391,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     _add_run(sub)
     _add_sweep(sub)
-    # later: _add_gap(sub), _add_bench(sub), ...
+    _add_gap(sub)
+    _add_gap_validate(sub)
     return parser
 
 

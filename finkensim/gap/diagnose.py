@@ -29,7 +29,7 @@ from ..flightlog import FlightLog
 from . import effects as fx
 from .predictive import ImuTable, ModelParams, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
-from .scoring import brier, brier_gap, ensemble_terms
+from .scoring import brier, brier_gap, ensemble_terms_grouped
 from .stats import BlockBootstrap, fdr_significant
 
 SENSORS = ("ultrasonic", "ranging", "imu")
@@ -145,8 +145,8 @@ class Diagnosis:
     # ------------------------------------------------------------------ scoring
     def _terms(self, sensor, p: ModelParams, rows):
         tab = self.tables[sensor]
-        D = tab.draws(self.flights, p, rows, self.seed, self.M)
-        return ensemble_terms(np.ascontiguousarray(D), np.ascontiguousarray(tab.y[rows]))
+        D, period = tab.draws(self.flights, p, rows, self.seed, self.M)
+        return ensemble_terms_grouped(np.ascontiguousarray(D), np.ascontiguousarray(tab.y[rows]), period)
 
     def score_rows(self, sensor, p: ModelParams, rows):
         """Per-row normalised (CRPS, gap) of a sensor under parameters p. Each (len(rows),)."""
@@ -331,19 +331,27 @@ def _bins(v, feat, n_bins):
 # ---------------------------------------------------------------------- closed-form fits
 
 def _fit_imu_bias(diag: Diagnosis, effect, current, vals):
-    """Each axis' bias = median residual of the real readings around the model's mean draw."""
+    """Biases by least squares on the windowed residuals around the model's mean draw: the two
+    accelerometer biases (body frame) jointly through each window's rotation, the gyro bias alone."""
     if "imu" not in diag.tables:
         return vals
     tab = diag.tables["imu"]
     rows = diag.rows_fit["imu"]
-    D = tab.draws(diag.flights, current, rows, diag.seed, diag.M)
+    D, _ = tab.draws(diag.flights, current, rows, diag.seed, diag.M)
     res = tab.y[rows] - D.mean(axis=1)
+    ch = tab.channel[rows]
     out = dict(vals)
-    for c, name in enumerate(("acc_x", "acc_y", "gyro")):
-        m = tab.channel[rows] == c
-        prm = next(q for q in effect.params if q.name == name)
-        if m.any():
-            out[name] = float(np.clip(np.median(res[m]), prm.lo, prm.hi))
+    lim = {q.name: (q.lo, q.hi) for q in effect.params}
+    acc = np.isfinite(res) & (ch < 2)
+    if acc.sum() >= 2:
+        A = tab.bias_gain[rows[acc]]
+        sol = np.linalg.lstsq(A, res[acc], rcond=None)[0]
+        out["acc_x"] = float(np.clip(sol[0], *lim["acc_x"]))
+        out["acc_y"] = float(np.clip(sol[1], *lim["acc_y"]))
+    gy = np.isfinite(res) & (ch == 2)
+    if gy.any():
+        out["gyro"] = float(np.clip(np.sum(res[gy] * tab.window_s[rows[gy]]) / np.sum(tab.window_s[rows[gy]] ** 2),
+                                    *lim["gyro"]))
     return out
 
 
@@ -484,7 +492,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
         "significant_locations": [i for i, loc in enumerate(locs) if loc["_significant"]],
         "scales": diag.scale, "sensors": list(diag.tables), "n_readings": {s: int(t.n) for s, t in diag.tables.items()},
         "seconds": time.perf_counter() - t0, "block_seconds": diag.block_seconds,
-        "catch_all": [r.name for r in first if fx.REGISTRY[r.name].catch_all],
+        "catch_all": [r.name for r in first if fx.REGISTRY[r.name].catch_all], "tie_tolerance": cfg.tie_tolerance,
     }
     return report
 

@@ -136,17 +136,18 @@ def _sonar_error(dist, kind, xtalk, flight, tidx, chan, seed, err, sigma, sign, 
 
 @njit(cache=True, parallel=True)
 def _gauss_error(ideal, flight, tidx, chan, seed, white, walk_var_per_s, t_since, bias, out):
-    """IMU draws: ideal + N(0, white²) + bias walk N(0, walk²·t) + bias. (n, M)."""
+    """Draws ideal + bias + N(0, white² + walk_var_per_s·t_since), all per row (n,). (n, M)."""
     n, M = ideal.shape
     for i in prange(n):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
-        sd = np.sqrt(white * white + walk_var_per_s * t_since[i])
+        sd = np.sqrt(white[i] * white[i] + walk_var_per_s[i] * t_since[i])
         for m in range(M):
-            out[i, m] = ideal[i, m] + bias + sd * normal(key, m)
+            out[i, m] = ideal[i, m] + bias[i] + sd * normal(key, m)
 
 
 # --------------------------------------------------------------------------------------- tables
 
+AMBIGUITY_SIGMAS = 3.0  # sonar readings closer than this (in pose-noise units) to a geometric flip are not scored
 GEOMETRY_DRAWS = 8  # distinct pose draws per reading when the poses are noisy (reused cyclically across M)
 
 
@@ -182,6 +183,7 @@ def _gather(tab, flights, rows, ideal_fn, M):
     u that the rows need (X the channel axis). Draw m uses geometry column m % G.
     """
     outs = None
+    period = np.ones(rows.size, dtype=np.int64)
     for fl in flights:
         sel = np.nonzero(tab.flight[rows] == fl.index)[0]
         if sel.size == 0:
@@ -195,7 +197,8 @@ def _gather(tab, flights, rows, ideal_fn, M):
         for o, a in zip(outs, arrays):
             cols = np.arange(M) % a.shape[-1]
             o[sel] = a[pos, tab.copter[r], tab.channel[r]][:, cols]
-    return outs
+        period[sel] = arrays[0].shape[-1]
+    return outs, period
 
 
 def _rows_key(u: np.ndarray) -> int:
@@ -248,12 +251,15 @@ class SonarTable(Table):
             names_f = sonar_channel_names(f.sonar_yaw)
             names = names or names_f
             K, N = f.samples.size, f.n_copters
-            out = np.empty((K, N, S, 7))
+            out = np.empty((K, N, S, 8))
             cos_cone = math.cos(math.radians(cfg.sonar.cone_half_angle_deg))
             rp.sonar_features(f.pos, f.yaw, f.theta_unit, f.arena.plate_a, f.arena.plate_b, f.arena.normal,
                               f.arena.lever, f.arena.width, f.arena.length, f.sonar_yaw, f.sonar_offset, f.radius,
-                              cfg.sonar.max_range, cos_cone, f.samples, out)
-            y = f.log.ultrasonic[f.samples]  # (K, N, S)
+                              cfg.sonar.max_range, cos_cone, f.samples, f.sigma_xy, f.sigma_yaw, out)
+            y = f.log.ultrasonic[f.samples].copy()  # (K, N, S)
+            # readings whose ideal value flips under the tracking noise (grazing a rim, at the range
+            # limit) are left out of every score alike: a small ensemble cannot represent them
+            y[out[..., 7] < AMBIGUITY_SIGMAS] = np.nan
             nd = _nearest_neighbor(f.pos[f.samples])  # (K, N)
             sp = _speed(f)  # (K, N)
             rr = _range_rate(out[..., 0], f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
@@ -305,14 +311,14 @@ class SonarTable(Table):
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
         """Predictive draws (len(rows), M) of the sonar readings ``rows`` under parameters p."""
-        dist, kind, xt = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+        (dist, kind, xt), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
         out = np.empty((rows.size, M))
         chan = self.copter[rows] * 64 + self.channel[rows]
         rs = math.sqrt((4.0 - math.pi) / 2.0) * p.sonar_sigma
         _sonar_error(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, p.sonar_error, p.sonar_sigma,
                      p.sonar_sign, rs, p.sonar_bias, p.sonar_scale, p.xtalk_const_p, p.xtalk_geo_q, p.xtalk_jitter,
                      p.sonar_min, p.sonar_max, out)
-        return out
+        return out, period
 
 
 class RangingTable(Table):
@@ -390,7 +396,7 @@ class RangingTable(Table):
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        (x,) = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+        (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
         model = self._model(p)
         inside = x <= p.ranging_max
         # one key per call; the flat index keeps draws aligned with rows and draws (common random numbers)
@@ -399,7 +405,7 @@ class RangingTable(Table):
             clear = self.features["los_clearance"][rows]
             y = y + (p.nlos_bias * np.exp(-((clear / max(p.nlos_width, 1e-6)) ** 2)))[:, None]
         y = np.where(inside, np.maximum(y, 0.0), p.ranging_max)
-        return y
+        return y, period
 
     def dropout_prob(self, p: ModelParams, rows: np.ndarray) -> np.ndarray:
         """Model probability (len(rows),) that a reading is missing."""
@@ -410,80 +416,114 @@ class RangingTable(Table):
 
 
 class ImuTable(Table):
-    """IMU readings: channels acc_x, acc_y (m/s², body frame) and gyro (rad/s)."""
+    """IMU readings integrated over a window of h steps (about ``gap.imu_window`` s):
+    channels 0, 1 = Δv_x, Δv_y (m/s, world frame: each body-frame sample rotated by the logged
+    yaw), 2 = Δψ (rad). Comparing integrals instead of single samples keeps the pose-derived
+    ideal free of smoothing bias and of 1/dt² noise amplification.
+
+    Extra per-row arrays: ``bias_gain`` (n, 2) maps a body-frame accelerometer bias (b_x, b_y)
+    onto the row's channel (Σ R(ψ_j) dt_j row), and ``window_s`` (n,) the window length in s.
+    """
+
+    window: int = 20
+    bias_gain: np.ndarray = None
+    window_s: np.ndarray = None
 
     @classmethod
     def build(cls, flights, cfg: Config, seed: int):
-        cols = {k: [] for k in ("y", "flight", "sample", "time", "copter", "channel", "sec", "sp", "wd", "am")}
+        cols = {k: [] for k in ("y", "flight", "sample", "time", "copter", "channel", "sec", "sp", "wd", "am",
+                                "g0", "g1", "ws")}
         any_ = False
         for f in flights:
             if f.log.imu_acc is None:
                 continue
             any_ = True
-            K, N = f.samples.size, f.n_copters
-            y = np.concatenate([f.log.imu_acc[f.samples], f.log.imu_gyro[f.samples][..., None]], axis=-1)  # (K,N,3)
-            kk, nn, cc = np.meshgrid(np.arange(K), np.arange(N), np.arange(3), indexing="ij")
+            h = max(1, int(round(cfg.gap.imu_window / f.dt)))
+            samples = f.samples[f.samples >= h + 1]
+            if samples.size == 0:
+                continue
+            K, N = samples.size, f.n_copters
+            dts = np.diff(f.t, prepend=f.t[0])
+            c, sn = np.cos(f.yaw), np.sin(f.yaw)
+            ax, ay, g = f.log.imu_acc[..., 0], f.log.imu_acc[..., 1], f.log.imu_gyro
+            csum = lambda a: np.cumsum(np.nan_to_num(a * dts[:, None], nan=0.0), axis=0)  # noqa: E731
+            wx, wy, wg = csum(c * ax - sn * ay), csum(sn * ax + c * ay), csum(g)
+            cc, ss = csum(c), csum(sn)
+            nan_acc = np.cumsum(~np.isfinite(ax) | ~np.isfinite(ay), axis=0)
+            nan_g = np.cumsum(~np.isfinite(g), axis=0)
+            win = lambda a: a[samples] - a[samples - h]  # noqa: E731  (K, N) sums over (k-h, k]
+            y = np.stack([win(wx), win(wy), win(wg)], axis=-1)
+            # a window with a missing sample has no integral: NaN (excluded), never silently filled
+            y[..., :2][win(nan_acc) > 0] = np.nan
+            y[..., 2][win(nan_g) > 0] = np.nan
+            Cc, Cs = win(cc), win(ss)
+            g0 = np.stack([Cc, Cs, np.zeros_like(Cc)], axis=-1)  # coefficient of b_x per channel
+            g1 = np.stack([-Cs, Cc, np.zeros_like(Cc)], axis=-1)  # coefficient of b_y per channel
+            ws = np.broadcast_to((f.t[samples] - f.t[samples - h])[:, None, None], y.shape)
+            pos_idx = np.searchsorted(f.samples, samples)
+            kk, nn, ch = np.meshgrid(pos_idx, np.arange(N), np.arange(3), indexing="ij")
             ok = np.isfinite(y)
-            sp = _speed(f)
-            P = f.pos[f.samples]
+            sp = _speed(f)[pos_idx]
+            P = f.pos[samples]
             wd = np.minimum(np.minimum(P[..., 0], f.arena.width - P[..., 0]), np.minimum(P[..., 1], f.arena.length - P[..., 1]))
-            acc0 = np.empty((K, N, 2, 1))
-            gy0 = np.empty((K, N, 1))
-            ao, aw, go, gw = rp.imu_filters(0.0, 0.0, f.dt)
-            rp.imu_draws(f.pos, f.yaw, f.yaw_unwrapped, f.samples, ao, aw, go, gw, 0.0, 0.0, seed, f.index, 1, acc0, gy0)
-            am = np.sqrt((acc0[..., 0] ** 2).sum(-1))
+            am = np.sqrt(y[..., 0] ** 2 + y[..., 1] ** 2) / ws[..., 0]
             cols["y"].append(y[ok])
             cols["flight"].append(np.full(ok.sum(), f.index))
             cols["sample"].append(kk[ok])
             cols["time"].append(f.samples[kk[ok]])
             cols["copter"].append(nn[ok])
-            cols["channel"].append(cc[ok])
+            cols["channel"].append(ch[ok])
             cols["sec"].append(f.t[f.samples[kk[ok]]] - f.t[0])
+            cols["g0"].append(g0[ok])
+            cols["g1"].append(g1[ok])
+            cols["ws"].append(ws[ok])
             for name, v in (("sp", sp), ("wd", wd), ("am", am)):
                 cols[name].append(np.broadcast_to(v[:, :, None], y.shape)[ok])
-        if not any_:
+        if not any_ or not cols["y"]:
             return None
         c = {k: np.concatenate(v) for k, v in cols.items()}
         feats = {"speed": c["sp"], "wall_distance": c["wd"], "acc_magnitude": c["am"],
                  "axis": c["channel"].astype(float)}
-        return cls(sensor="imu", y=c["y"].astype(float), flight=c["flight"].astype(np.int64),
-                   sample=c["sample"].astype(np.int64), time=c["time"].astype(np.int64),
-                   copter=c["copter"].astype(np.int64), channel=c["channel"].astype(np.int64),
-                   features={k: v.astype(float) for k, v in feats.items()}, channel_names=["all"],
-                   seconds=c["sec"].astype(float))
+        t = cls(sensor="imu", y=c["y"].astype(float), flight=c["flight"].astype(np.int64),
+                sample=c["sample"].astype(np.int64), time=c["time"].astype(np.int64),
+                copter=c["copter"].astype(np.int64), channel=c["channel"].astype(np.int64),
+                features={k: v.astype(float) for k, v in feats.items()}, channel_names=["all"],
+                seconds=c["sec"].astype(float))
+        t.bias_gain = np.stack([c["g0"], c["g1"]], axis=-1).astype(float)
+        t.window_s = c["ws"].astype(float)
+        t.window = max(1, int(round(cfg.gap.imu_window / flights[0].dt)))
+        return t
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
         sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
         G = geometry_draws(sx, sy, M)
-        key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), p.latency_imu, G)
+        h = self.window
+        key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), p.latency_imu, G, h)
         hit = self.cache.get(key)
         if hit is None:
-            times = np.maximum(0, fl.samples[u] - p.latency_imu)
-            N = fl.n_copters
-            ao, aw, go, gw = rp.imu_filters(sx, sy, fl.dt)
-            acc = np.empty((times.size, N, 2, G))
-            gy = np.empty((times.size, N, G))
-            rp.imu_draws(fl.pos, fl.yaw, fl.yaw_unwrapped, times, ao, aw, go, gw, sx, sy, seed, fl.index, G, acc, gy)
-            hit = self.cache.put(key, (np.concatenate([acc, gy[:, :, None, :]], axis=2),))  # (K, N, 3, G)
+            times = np.maximum(h + 1, fl.samples[u] - p.latency_imu)
+            out = np.empty((times.size, fl.n_copters, 3, G))
+            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, sx, sy, seed, fl.index, G, out)
+            hit = self.cache.put(key, (out,))
         return hit
 
-    def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        (ideal,) = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
-        out = np.empty_like(ideal)
+    def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int):
+        (ideal,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
         ch = self.channel[rows]
-        for c, (white, walk, bias) in enumerate(((p.acc_white, p.acc_walk, p.acc_bias_x),
-                                                 (p.acc_white, p.acc_walk, p.acc_bias_y),
-                                                 (p.gyro_white, p.gyro_walk, p.gyro_bias))):
-            sel = np.nonzero(ch == c)[0]
-            if sel.size == 0:
-                continue
-            r = rows[sel]
-            o = np.empty((sel.size, M))
-            _gauss_error(np.ascontiguousarray(ideal[sel]), self.flight[r], self.time[r], self.copter[r] * 4 + c, seed,
-                         white, walk * walk, self.seconds[r], bias, o)
-            out[sel] = o
-        return out
+        ws = self.window_s[rows]
+        # bias: body-frame accelerometer bias rotated into each window's world-frame integral
+        bias = self.bias_gain[rows, 0] * p.acc_bias_x + self.bias_gain[rows, 1] * p.acc_bias_y
+        bias = np.where(ch == 2, p.gyro_bias * ws, bias)
+        white = np.where(ch == 2, p.gyro_white, p.acc_white)
+        walk = np.where(ch == 2, p.gyro_walk, p.acc_walk)
+        dt_mean = ws / self.window
+        # Σ of h white samples times dt, and a bias random walk of std walk·sqrt(t) integrated over the window
+        sd = np.sqrt(self.window * (white * dt_mean) ** 2 + (walk * ws) ** 2 * self.seconds[rows])
+        out = np.empty_like(ideal)
+        _gauss_error(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch, seed,
+                     np.ascontiguousarray(sd), np.zeros(rows.size), np.zeros(rows.size), np.ascontiguousarray(bias), out)
+        return out, period
 
 
 def _nearest_neighbor(P):

@@ -240,14 +240,17 @@ def sonar_draws(pos, yaw, theta, gain, plate_a, plate_b, normal_, lever, width, 
 
 @njit(cache=True, parallel=True)
 def sonar_features(pos, yaw, theta, plate_a, plate_b, normal_, lever, width, length, mount_yaw, offset, radius,
-                   max_range, cos_cone, times, out):
-    """Context features of every sonar reading at the logged poses → out (K, N, S, 7):
+                   max_range, cos_cone, times, sigma_xy, sigma_yaw, out):
+    """Context features of every sonar reading at the logged poses → out (K, N, S, 8):
 
     0 true_range (m), 1 hit_type (0 none, 1 wall, 2 copter), 2 incidence (deg, ray vs wall
     normal; NaN unless a wall hit), 3 hit_to_copter (m, wall hit point to nearest copter centre;
     NaN unless a wall hit), 4 neighbor_in_beam (0/1: another copter centre inside the cone
     within max_range), 5 plate_shift (m, displacement lever·sin θ of the plate at the hit, unit
-    bending walls), 6 wall_distance (m, copter centre to nearest wall line).
+    bending walls), 6 wall_distance (m, copter centre to nearest wall line), 7 ambiguity (in units
+    of the pose noise: how far the ray is from grazing another copter's rim, or the hit from the
+    range limit, divided by σ_xy + σ_ψ·distance; inf without noise). Readings with a small
+    ambiguity have an ideal value that flips under tracking noise.
     """
     K = times.shape[0]
     N = pos.shape[1]
@@ -307,6 +310,7 @@ def sonar_features(pos, yaw, theta, plate_a, plate_b, normal_, lever, width, len
                             bs = lever * np.sin(theta[k, p])
                     out[ti, n, s, 5] = bs
                 inb = 0.0
+                amb = np.inf
                 for q in range(N):
                     if q == n:
                         continue
@@ -315,7 +319,17 @@ def sonar_features(pos, yaw, theta, plate_a, plate_b, normal_, lever, width, len
                     L = np.sqrt(wx * wx + wy * wy)
                     if 0.0 < L <= max_range and dx * wx + dy * wy >= cos_cone * L:
                         inb = 1.0
+                    along = dx * wx + dy * wy
+                    if along > 0.0 and along < min(t_, max_range) + radius:
+                        perp = abs(dx * wy - dy * wx)
+                        sc = sigma_xy * 1.4142 + sigma_yaw * along
+                        if sc > 0.0:
+                            amb = min(amb, abs(perp - radius) / sc)
+                sc = sigma_xy * 1.4142 + sigma_yaw * t_
+                if sc > 0.0 and np.isfinite(t_):
+                    amb = min(amb, abs(t_ - max_range) / sc)
                 out[ti, n, s, 4] = inb
+                out[ti, n, s, 7] = amb
 
 
 # --------------------------------------------------------------------------------------- ranging
@@ -368,58 +382,29 @@ def ranging_clearance(pos, times, out):
 
 # --------------------------------------------------------------------------------------- imu
 
-def local_poly_weights(offsets, x0, order, deriv, dt):
-    """Weights w (len(offsets),) such that Σ w_j f(k + offsets_j) is the ``deriv``-th derivative at
-    k + x0 of the least-squares polynomial of ``order`` through the samples (spacing dt)."""
-    offs = np.asarray(offsets, dtype=float) - x0
-    X = np.vander(offs, order + 1, increasing=True)
-    pinv = np.linalg.pinv(X)
-    from math import factorial
-    return pinv[deriv] * factorial(deriv) / dt**deriv
-
-
-def imu_filters(sigma_xy: float, sigma_yaw: float, dt: float):
-    """Offsets and weights of the finite-difference filters that estimate, from poses, what the
-    simulator records as the IMU's ideal values at sample k: the acceleration of the last step,
-    (p_k − 2 p_{k−1} + p_{k−2})/dt², and the yaw rate (ψ_k − ψ_{k−1})/dt. With tracking noise the
-    windows widen (local quadratic / linear fits) to keep the noise they pass small."""
-    ha = 1 if sigma_xy == 0.0 else 4
-    acc_off = np.arange(-1 - ha, -1 + ha + 1)
-    acc_w = local_poly_weights(acc_off, -1.0, 2, 2, dt)
-    hg = 0 if sigma_yaw == 0.0 else 3
-    gyro_off = np.arange(-1 - hg, hg + 1)
-    gyro_w = local_poly_weights(gyro_off, -0.5, 1 if hg == 0 else 2, 1, dt)
-    return acc_off.astype(np.int64), acc_w, gyro_off.astype(np.int64), gyro_w
-
-
 @njit(cache=True, parallel=True)
-def imu_draws(pos, yaw, yaw_unwrapped, times, acc_off, acc_w, gyro_off, gyro_w, sigma_xy, sigma_yaw, seed,
-              flight_id, M, out_acc, out_gyro):
-    """Ideal IMU values for M pose draws: out_acc (K, N, 2, M) m/s² body frame (x forward, y left),
-    out_gyro (K, N, M) rad/s, from filtered finite differences of the drawn poses."""
+def imu_window_draws(pos, yaw_unwrapped, t, times, h, sigma_xy, sigma_yaw, seed, flight_id, M, out):
+    """Window-integrated ideal IMU values for M pose draws: out (K, N, 3, M) =
+    (Δv_x, Δv_y) m/s world frame and Δψ rad over the h steps ending at each time in ``times``.
+
+    Δv = v_k − v_{k−h} with v_j = (p_j − p_{j−1}) / (t_j − t_{j−1}) is exactly Σ a_j dt_j of the
+    simulator's recorded accelerations, and Δψ = ψ_k − ψ_{k−h} is Σ ω_j dt_j: integrating the IMU
+    instead of differentiating the poses twice avoids amplifying tracking noise by 1/dt².
+    """
     K = times.shape[0]
     N = pos.shape[1]
-    T = pos.shape[0]
     for i in prange(K * M):
         ti = i // M
         m = i % M
         k = times[ti]
+        k0 = k - h
         for n in range(N):
-            ax = 0.0
-            ay = 0.0
-            for j in range(acc_off.shape[0]):
-                kk = min(T - 1, max(0, k + acc_off[j]))
-                x, y, w = _pose_draw(pos, yaw, kk, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-                ax += acc_w[j] * x
-                ay += acc_w[j] * y
-            g = 0.0
-            for j in range(gyro_off.shape[0]):
-                kk = min(T - 1, max(0, k + gyro_off[j]))
-                x, y, w = _pose_draw(pos, yaw_unwrapped, kk, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-                g += gyro_w[j] * w
-            x, y, psi = _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            c = np.cos(psi)
-            s = np.sin(psi)
-            out_acc[ti, n, 0, m] = c * ax + s * ay
-            out_acc[ti, n, 1, m] = -s * ax + c * ay
-            out_gyro[ti, n, m] = g
+            x1, y1, w1 = _pose_draw(pos, yaw_unwrapped, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            x0, y0, _ = _pose_draw(pos, yaw_unwrapped, k - 1, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            a1, b1, w0 = _pose_draw(pos, yaw_unwrapped, k0, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            a0, b0, _ = _pose_draw(pos, yaw_unwrapped, k0 - 1, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            d1 = t[k] - t[k - 1]
+            d0 = t[k0] - t[k0 - 1]
+            out[ti, n, 0, m] = (x1 - x0) / d1 - (a1 - a0) / d0
+            out[ti, n, 1, m] = (y1 - y0) / d1 - (b1 - b0) / d0
+            out[ti, n, 2, m] = w1 - w0

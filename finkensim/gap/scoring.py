@@ -39,6 +39,44 @@ def _sorted_terms(xs, y):
     return mean_abs, mean_pair
 
 
+@njit(cache=True, inline="always")
+def _grouped_terms(x, y, period):
+    """(mean |X − y|, mean |X_i − X_j| over pairs with i ≢ j mod period) for one reading."""
+    M = x.shape[0]
+    s_abs = 0.0
+    for k in range(M):
+        s_abs += abs(x[k] - y)
+    s_pair = 0.0
+    n_pair = 0
+    for i in range(M):
+        for j in range(i + 1, M):
+            if (j - i) % period != 0:
+                s_pair += abs(x[i] - x[j])
+                n_pair += 1
+    return s_abs / M, (s_pair / n_pair if n_pair > 0 else 0.0)
+
+
+@njit(cache=True, parallel=True)
+def ensemble_terms_grouped(draws, y, period):
+    """Like :func:`ensemble_terms`, for ensembles whose members m and m + period share a random input
+    (e.g. a pose draw reused cyclically): the pair term uses only independent pairs, which keeps it
+    unbiased. period (n,) int64; period ≤ 1 or ≥ M means all members are independent."""
+    n, M = draws.shape
+    t_abs = np.empty(n)
+    t_pair = np.empty(n)
+    for i in prange(n):
+        if not np.isfinite(y[i]):
+            t_abs[i] = np.nan
+            t_pair[i] = np.nan
+            continue
+        if period[i] <= 1 or period[i] >= M:
+            xs = np.sort(draws[i])
+            t_abs[i], t_pair[i] = _sorted_terms(xs, y[i])
+        else:
+            t_abs[i], t_pair[i] = _grouped_terms(draws[i], y[i], period[i])
+    return t_abs, t_pair
+
+
 @njit(cache=True, parallel=True)
 def ensemble_terms(draws, y):
     """Per reading: (E|X − y|, E|X − X'|) from an ensemble.

@@ -1,0 +1,189 @@
+"""Write a gap report: ``report.json`` (``spec/gap-report.md``, to the letter), ``report.md`` and figures.
+
+The JSON has exactly the spec's keys; values that are not finite (an undefined CI) become
+``null``. The Markdown report adds what people need to read it: the verdict in words, the
+confidence of the gap, near ties between effects, and the figures.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+SPEC_KEYS = ("format", "flights", "score", "gap_before", "locations", "effects", "verdict")
+
+
+def _finite(x):
+    """JSON-safe copy: NaN/inf → None, NumPy scalars → Python."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def spec_report(report: dict) -> dict:
+    """The report reduced to the spec's keys, JSON-safe."""
+    return _finite({k: report[k] for k in SPEC_KEYS})
+
+
+def write_report(report: dict, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
+    """Write report.json, report.md and the figures into ``out``; returns the written paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"json": out / "report.json", "md": out / "report.md"}
+    paths["json"].write_text(json.dumps(spec_report(report), indent=1, allow_nan=False) + "\n")
+    figs = write_figures(report, out)
+    paths.update(figs)
+    paths["md"].write_text(markdown(report, {k: v.name for k, v in figs.items()}, max_locations_md))
+    return paths
+
+
+def _fmt(x, nd=3):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    return f"{x:.{nd}f}"
+
+
+def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
+    priv = report.get("_private", {})
+    v = report["verdict"]
+    lines = ["# Sim-to-real gap report", ""]
+    lines.append(f"Training flights: {', '.join(report['flights']['train'])}  ")
+    lines.append(f"Held-out flights: {', '.join(report['flights']['heldout'])}  ")
+    lines.append(f"Sensors compared: {', '.join(priv.get('sensors', []))} "
+                 f"({', '.join(f'{k}: {n} readings' for k, n in priv.get('n_readings', {}).items())})")
+    lines.append("")
+    ci = priv.get("gap_before_ci", [None, None])
+    lines.append("## Verdict")
+    lines.append("")
+    if not v["significant_gap"]:
+        lines.append(f"**No significant gap.** The held-out readings are consistent with the simulator: mean gap "
+                     f"{_fmt(report['gap_before'])} (95 % CI {_fmt(ci[0])} … {_fmt(ci[1])}).")
+    elif v["unexplained"]:
+        lines.append(f"**Significant gap, unexplained.** Mean held-out gap {_fmt(report['gap_before'])} (95 % CI "
+                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least half of it (best single "
+                     f"effect: {report['effects'][0]['name'] if report['effects'] else 'none'}, held-out shrink "
+                     f"{_fmt(v['shrink_heldout'], 2)}). Where it lies is listed below.")
+    else:
+        e = next(e for e in report["effects"] if e["name"] == v["effect"])
+        params = ", ".join(f"{k} = {_fmt(x, 4)}" for k, x in e["params"].items())
+        lines.append(f"**{v['effect']}** explains the gap: fitted on the training flights ({params}), it shrinks the "
+                     f"held-out gap by {100 * v['shrink_heldout']:.0f} % (from {_fmt(report['gap_before'])} to "
+                     f"{_fmt(e['gap_after_heldout'])}).")
+        if priv.get("ties"):
+            lines.append("")
+            lines.append(f"Near ties (held-out improvement within {priv.get('tie_tolerance', 0.1):.0%} of the best): "
+                         f"{', '.join(priv['ties'])}. Treat the choice between them as ambiguous.")
+        if len(priv.get("added", [])) > 1:
+            lines.append("")
+            lines.append(f"Forward selection added: {', '.join(priv['added'])} (total held-out shrink "
+                         f"{100 * priv.get('total_shrink', 0):.0f} %).")
+    lines.append("")
+    lines.append(f"Score: `{report['score']}`: per reading, CRPS minus its expectation under the model, divided by "
+                 "the sensor's base mean absolute error; 0 when reality could have come from the simulator.")
+    lines.append("")
+    if "gap" in figs:
+        lines += ["## Where", "", f"![gap by condition]({figs['gap']})", ""]
+    sig = set(priv.get("significant_locations", []))
+    lines.append("| sensor | channel | feature | bin | gap | 95 % CI | n | significant |")
+    lines.append("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for i, loc in enumerate(report["locations"][:max_locations]):
+        lines.append(f"| {loc['sensor']} | {loc['channel']} | {loc['feature']} | [{_fmt(loc['low'], 2)}, "
+                     f"{_fmt(loc['high'], 2)}) | {_fmt(loc['gap'])} | {_fmt(loc['ci'][0])} … {_fmt(loc['ci'][1])} | "
+                     f"{loc['n']} | {'yes' if i in sig else ''} |")
+    lines += ["", "## Which", ""]
+    if "effects" in figs:
+        lines += [f"![effects]({figs['effects']})", ""]
+    lines.append("| effect | fitted parameters | held-out score | gap after (train) | gap after (held-out) | shrink |")
+    lines.append("| --- | --- | --- | --- | --- | --- |")
+    for e in report["effects"]:
+        params = ", ".join(f"{k}={_fmt(x, 3)}" for k, x in e["params"].items())
+        lines.append(f"| {e['name']} | {params} | {_fmt(e['score_heldout'], 4)} | {_fmt(e['gap_after_train'])} | "
+                     f"{_fmt(e['gap_after_heldout'])} | {_fmt(e['shrink_heldout'], 2)} |")
+    if "waterfall" in figs:
+        lines += ["", "## How far", "", f"![waterfall]({figs['waterfall']})", ""]
+    for w in priv.get("waterfall", []):
+        lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])}")
+    lines.append("")
+    lines.append(f"_Computed in {priv.get('seconds', float('nan')):.0f} s; bootstrap blocks of "
+                 f"{priv.get('block_seconds', float('nan')):.1f} s._")
+    return "\n".join(lines) + "\n"
+
+
+def write_figures(report: dict, out: Path) -> dict[str, Path]:
+    """gap_by_condition.png, effects.png, waterfall.png (matplotlib, Agg-safe)."""
+    import matplotlib
+
+    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
+        try:
+            matplotlib.use("Agg")
+        except Exception:  # pragma: no cover
+            pass
+    import matplotlib.pyplot as plt
+
+    paths = {}
+    priv = report.get("_private", {})
+    sig = set(priv.get("significant_locations", []))
+    locs = report["locations"][:15]
+    if locs:
+        fig, ax = plt.subplots(figsize=(8, 0.35 * len(locs) + 1.2))
+        y = np.arange(len(locs))[::-1]
+        g = np.array([loc["gap"] for loc in locs], float)
+        lo = np.array([loc["ci"][0] if loc["ci"][0] is not None else np.nan for loc in locs], float)
+        hi = np.array([loc["ci"][1] if loc["ci"][1] is not None else np.nan for loc in locs], float)
+        colors = ["C3" if i in sig else "0.6" for i in range(len(locs))]
+        ax.barh(y, g, color=colors)
+        ax.errorbar(g, y, xerr=[np.nan_to_num(g - lo), np.nan_to_num(hi - g)], fmt="none", ecolor="k", lw=1)
+        ax.set_yticks(y)
+        ax.set_yticklabels([f"{loc['sensor']}/{loc['channel']} {loc['feature']} [{loc['low']:.2g}, {loc['high']:.2g})"
+                            for loc in locs], fontsize=8)
+        ax.axvline(0, color="k", lw=0.8)
+        ax.set_xlabel("normalised gap per reading (95 % CI); red = significant after FDR control")
+        ax.set_title("Where the simulator disagrees with the logs")
+        fig.tight_layout()
+        paths["gap"] = out / "gap_by_condition.png"
+        fig.savefig(paths["gap"], dpi=110)
+        plt.close(fig)
+    effs = report["effects"]
+    if effs:
+        fig, ax = plt.subplots(figsize=(7, 0.35 * len(effs) + 1.2))
+        y = np.arange(len(effs))[::-1]
+        s = [e["shrink_heldout"] if e["shrink_heldout"] is not None else 0.0 for e in effs]
+        ax.barh(y, s, color=["C2" if e["name"] == report["verdict"]["effect"] else "C0" for e in effs])
+        ax.set_yticks(y)
+        ax.set_yticklabels([e["name"] for e in effs], fontsize=9)
+        ax.axvline(0, color="k", lw=0.8)
+        ax.set_xlabel("held-out gap shrink when the effect is added and fitted (1 = gap removed)")
+        ax.set_title("Candidate effects, best held-out score first")
+        fig.tight_layout()
+        paths["effects"] = out / "effects.png"
+        fig.savefig(paths["effects"], dpi=110)
+        plt.close(fig)
+    wf = priv.get("waterfall", [])
+    if wf:
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        vals = [w["gap_heldout"] for w in wf]
+        ax.bar(range(len(wf)), vals, color=["0.5"] + ["C2"] * (len(wf) - 1))
+        for i, w in enumerate(wf):
+            if w.get("ci") and w["ci"][0] is not None and np.isfinite(w["ci"][0]):
+                ax.errorbar(i, w["gap_heldout"], yerr=[[w["gap_heldout"] - w["ci"][0]], [w["ci"][1] - w["gap_heldout"]]],
+                            color="k", lw=1)
+        ax.set_xticks(range(len(wf)))
+        ax.set_xticklabels([w["step"] for w in wf], rotation=20, ha="right", fontsize=9)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_ylabel("held-out gap")
+        ax.set_title("How far the gap shrinks")
+        fig.tight_layout()
+        paths["waterfall"] = out / "waterfall.png"
+        fig.savefig(paths["waterfall"], dpi=110)
+        plt.close(fig)
+    return paths
