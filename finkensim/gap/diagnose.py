@@ -46,6 +46,7 @@ class FitResult:
     gap_train: float = math.nan
     gap_heldout: float = math.nan
     rows_score: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out score
+    rows_gap: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out gap
 
 
 class Diagnosis:
@@ -300,6 +301,7 @@ class Diagnosis:
     def score_heldout(self, res: FitResult, gap_before_parts=None):
         ev, rows = self.evaluate(res.params, "heldout")
         res.rows_score = {s: c for s, (c, _) in ev.items()}
+        res.rows_gap = {s: g for s, (_, g) in ev.items()}
         res.score_heldout = float(np.mean([np.nanmean(c) for c, _ in ev.values()]))
         res.gap_heldout = float(np.mean([np.nanmean(g) for _, g in ev.values()]))
         evt, _ = self.evaluate(res.params, "fit")
@@ -414,7 +416,21 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
     gap_before, gap_ci, gap_p = diag.overall(gap_vals, rows_ho)
     base_scores = {s: c for s, (c, _) in ev_b.items()}
     score_before = float(np.mean([np.nanmean(c) for c in base_scores.values()]))
-    significant = bool(np.isfinite(gap_p) and gap_p < cfg.alpha and gap_before > cfg.margin)
+    # significance per sensor (Bonferroni over sensors): a gap in one sensor is not diluted by the
+    # noise of the others
+    per_sensor = {}
+    for s in gap_vals:
+        m, ci_s, p_s = diag.overall({s: gap_vals[s]}, {s: rows_ho[s]})
+        per_sensor[s] = {"gap": m, "ci": list(ci_s), "p": p_s,
+                         "significant": bool(np.isfinite(p_s) and p_s < cfg.alpha / len(gap_vals) and m > cfg.margin)}
+    gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
+    significant = bool(gap_sensors)
+
+    def gap_on(values_by_sensor, sensors):
+        """Mean held-out gap over the given sensors (the ones with a significant base gap)."""
+        return float(np.mean([np.nanmean(values_by_sensor[s]) for s in sensors])) if sensors else math.nan
+
+    base_gap_sig = gap_on(gap_vals, gap_sensors)
 
     diag.say("locating the gap")
     locs = diag.locations(base)
@@ -432,7 +448,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
         return diag.overall(diff, rows_ho)
 
     # greedy forward selection on the held-out score
-    current, cur_scores, cur_gap = base, base_scores, gap_before
+    current, cur_scores, cur_gap = base, base_scores, base_gap_sig
     waterfall = [{"step": "configured model", "effect": None, "gap_heldout": gap_before, "ci": list(gap_ci)}]
     added, pool = [], list(first)
     ties = []
@@ -442,8 +458,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
                           key=lambda r: r.score_heldout)
         best = pool[0]
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
-        cur_mean_gap = max(cur_gap, 1e-12)
-        gain = (cur_gap - best.gap_heldout) / cur_mean_gap if cur_gap > 0 else 0.0
+        best_gap_sig = gap_on(best.rows_gap, gap_sensors)
+        gain = (cur_gap - best_gap_sig) / cur_gap if cur_gap > 0 else 0.0
         if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and gain >= cfg.accept_gain):
             break
         if not added:
@@ -451,14 +467,14 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
             ties = [r.name for r in pool[1:]
                     if best_imp > 0 and (score_before - r.score_heldout) >= (1 - cfg.tie_tolerance) * best_imp]
         added.append(best)
-        current, cur_scores, cur_gap = best.params, best.rows_score, best.gap_heldout
+        current, cur_scores, cur_gap = best.params, best.rows_score, best_gap_sig
         ev_c, _ = diag.evaluate(current, "heldout")
         g, ci, _ = diag.overall({s: gg for s, (_, gg) in ev_c.items()}, rows_ho)
         waterfall.append({"step": f"+ {best.name}", "effect": best.name, "gap_heldout": g, "ci": list(ci),
                           "params": _clean(best.values)})
         pool = [r for r in pool if r.name != best.name]
         diag.say(f"  added {best.name}: held-out gap {g:.4f}")
-        if not (g > cfg.margin):
+        if not (cur_gap > cfg.margin):
             break
 
     def shrink(g):
@@ -467,12 +483,13 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
     effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
                 "gap_after_train": r.gap_train, "gap_after_heldout": r.gap_heldout,
                 "shrink_heldout": shrink(r.gap_heldout)} for r in first]
-    total_shrink = shrink(cur_gap)
+    total_shrink = float(1.0 - cur_gap / base_gap_sig) if significant and base_gap_sig > 0 else 0.0
     if not significant:
         verdict = {"effect": None, "shrink_heldout": 0.0, "unexplained": False, "significant_gap": False}
     elif not added or total_shrink < cfg.unexplained_shrink:
         verdict = {"effect": None, "shrink_heldout": shrink(first[0].gap_heldout) if first else 0.0,
                    "unexplained": True, "significant_gap": True}
+        diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
     else:
         verdict = {"effect": added[0].name, "shrink_heldout": shrink(added[0].gap_heldout), "unexplained": False,
                    "significant_gap": True}
@@ -488,11 +505,13 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
     }
     report["_private"] = {
         "gap_before_ci": list(gap_ci), "gap_before_p": gap_p, "score_before": score_before,
+        "per_sensor": per_sensor, "gap_sensors": gap_sensors,
         "waterfall": waterfall, "added": [r.name for r in added], "total_shrink": total_shrink, "ties": ties,
         "significant_locations": [i for i, loc in enumerate(locs) if loc["_significant"]],
         "scales": diag.scale, "sensors": list(diag.tables), "n_readings": {s: int(t.n) for s, t in diag.tables.items()},
         "seconds": time.perf_counter() - t0, "block_seconds": diag.block_seconds,
         "catch_all": [r.name for r in first if fx.REGISTRY[r.name].catch_all], "tie_tolerance": cfg.tie_tolerance,
+        "unexplained_shrink": cfg.unexplained_shrink,
     }
     return report
 

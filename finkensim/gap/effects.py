@@ -128,7 +128,7 @@ register(Effect(
     initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
     expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
 register(Effect(
-    "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.6, unit="m")),
+    "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.35, unit="m")),
     lambda b, v: b.with_(nlos_bias=v["bias"], nlos_width=v["width"]),
     doc="ranging reads long when a third copter's body is near the line of sight: bias·exp(−(clearance/width)²)",
     initial=lambda b: {"bias": b.nlos_bias, "width": b.nlos_width},

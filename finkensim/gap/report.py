@@ -70,7 +70,7 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
                      f"{_fmt(report['gap_before'])} (95 % CI {_fmt(ci[0])} … {_fmt(ci[1])}).")
     elif v["unexplained"]:
         lines.append(f"**Significant gap, unexplained.** Mean held-out gap {_fmt(report['gap_before'])} (95 % CI "
-                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least half of it (best single "
+                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least {100 * priv.get('unexplained_shrink', 0.7):.0f} % of it (best single "
                      f"effect: {report['effects'][0]['name'] if report['effects'] else 'none'}, held-out shrink "
                      f"{_fmt(v['shrink_heldout'], 2)}). Where it lies is listed below.")
     else:

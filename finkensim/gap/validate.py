@@ -5,9 +5,9 @@ strength, then diagnoses them with a model that lacks that effect. All flights c
 noise on the logged poses (declared in ``meta``). Effects the simulator models itself (bending
 walls, geometric and constant cross-talk, beam width, Rayleigh scale) are switched on in its
 config; the others are applied to the simulated log by code written here, independently of the
-diagnosis's own effect models. Two controls: ``null`` (nothing withheld: no gap should be found)
-and ``foreign`` (an effect outside the catalogue, a ranging clock-scale error: the verdict must be
-``unexplained``).
+diagnosis's own effect models. Controls: ``null`` (nothing withheld: no gap should be found)
+and two effects outside the catalogue, ``foreign`` (a ranging clock-scale error) and
+``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``.
 """
 from __future__ import annotations
 
@@ -129,6 +129,15 @@ def _post_imu_bias(bx, by, bg):
     return f
 
 
+def _post_sonar_multipath(p_ghost, lo, hi):
+    """Multipath ghosts: with probability p an echo reads long by U(lo, hi) m (a second-bounce path)."""
+    def f(log, cfg, rng):
+        m = _echo_mask(log, cfg.sonar.max_range) & (rng.random(log.ultrasonic.shape) < p_ghost)
+        extra = rng.uniform(lo, hi, log.ultrasonic.shape)
+        log.ultrasonic = np.where(m, np.minimum(log.ultrasonic + extra, cfg.sonar.max_range), log.ultrasonic)
+    return f
+
+
 def _post_ranging_scale(k):
     def f(log, cfg, rng):
         inside = log.extras["ranging_ideal"] < cfg.ranging.max_range
@@ -173,6 +182,8 @@ CASES: dict[str, Case] = {
         {"acc_x": bx, "acc_y": by, "gyro": bg}), "imu"),
     "foreign": Case("foreign", None, lambda r: (
         {}, _post_ranging_scale(float(r.uniform(1.08, 1.15))), {}), "ranging"),
+    "foreign_multipath": Case("foreign_multipath", None, lambda r: (
+        {}, _post_sonar_multipath(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ultrasonic"),
 }
 
 
@@ -262,7 +273,7 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=6, prog
     return {
         "case": name, "seed": seed, "truth": {k: v_ for k, v_ in truth.items()},
         "significant": v["significant_gap"], "named": named, "unexplained": v["unexplained"],
-        "correct": (not v["significant_gap"]) if name == "null" else (v["unexplained"] if name == "foreign"
+        "correct": (not v["significant_gap"]) if name == "null" else (v["unexplained"] if case.effect is None
                                                                       else named == case.effect),
         "location_ok": location_ok(report, case, truth), "param_error": param_error(report, case, truth),
         "shrink_heldout": next((e["shrink_heldout"] for e in report["effects"] if e["name"] == case.effect), math.nan)
