@@ -16,6 +16,7 @@ exits with code 2; there is no traceback for user errors.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -365,10 +366,27 @@ def cmd_gap_validate(args) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    # one JSON line per finished trial: an interrupted run keeps its trials and continues where it stopped
+    log_path = out / "trials.jsonl"
+    done = {}
+    if log_path.exists():
+        for line in log_path.read_text().splitlines():
+            try:
+                r = json.loads(line)
+                done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
+            except (ValueError, KeyError):
+                continue
     rows = []
     jobs = [(c, args.seed + t) for c in cases for t in range(args.trials)]
     for case, seed in tqdm(jobs, desc="gap-validate", disable=args.no_progress, file=sys.stderr):
-        rows.append(run_case(case, seed, n_flights=args.flights, duration=args.duration))
+        key = (case, seed, args.flights, args.duration)
+        if key not in done:
+            r = run_case(case, seed, n_flights=args.flights, duration=args.duration)
+            r.update(flights=args.flights, duration=args.duration)
+            with log_path.open("a") as fh:
+                fh.write(json.dumps(r, default=float) + "\n")
+            done[key] = r
+        rows.append(done[key])
     table, md = confusion(rows)
     table.to_csv(out / "results.csv", index=False)
     (out / "matrix.md").write_text(md)

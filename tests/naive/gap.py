@@ -1,0 +1,93 @@
+"""Plain NumPy references for the gap-diagnosis kernels (slow, readable; tests only)."""
+from __future__ import annotations
+
+import numpy as np
+
+from finkensim.kernels.rng import STREAM_EFFECT, normals_array, uniforms_array
+
+
+def ensemble_terms(draws, y, period=None):
+    """(E|X − y|, E|X − X'|) by brute force over all pairs (excluding pairs i ≡ j mod period)."""
+    n, M = draws.shape
+    a = np.abs(draws - y[:, None]).mean(axis=1)
+    i, j = np.triu_indices(M, 1)
+    b = np.empty(n)
+    for r in range(n):
+        keep = np.ones(i.size, bool)
+        if period is not None and 1 < period[r] < M:
+            keep = (j - i) % period[r] != 0
+        b[r] = np.abs(draws[r, i[keep]] - draws[r, j[keep]]).mean()
+    a[~np.isfinite(y)] = np.nan
+    b[~np.isfinite(y)] = np.nan
+    return a, b
+
+
+def sonar_error(dist, kind, xtalk, flight, tidx, chan, seed, err, sigma, sign, rs, bias, scale, p_const, q_geo,
+                jitter, lo, hi):
+    """Reading draws from ideal draws, using the same counter-based numbers as the kernel."""
+    n, M = dist.shape
+    out = np.empty((n, M))
+    for i in range(n):
+        u = uniforms_array(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT, 8 * M)
+        z = normals_array(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT, 4 * M)
+        for m in range(M):
+            d = dist[i, m]
+            if kind[i, m] == 0:
+                y = hi
+            else:
+                y = d * scale + bias
+                if err == 1:
+                    y += sigma * z[4 * m + 1]
+                elif err >= 2:
+                    R = np.sqrt(-2.0 * sigma**2 * np.log(u[8 * m]))
+                    y += sign * (R - rs)
+            if p_const > 0 and u[8 * m + 4] < p_const:
+                y = 0.5 * d
+            if q_geo > 0 and np.isfinite(xtalk[i, m]) and u[8 * m + 5] < q_geo:
+                y = min(y, 0.5 * xtalk[i, m] + jitter * z[4 * m + 3])
+            out[i, m] = min(hi, max(lo, y))
+    return out
+
+
+def crosstalk_paths(pos, yaw, mount_yaw, offset, max_range, cos_half):
+    """Shortest mutual-view emitter→receiver path per (copter, sonar) at one time: (N, S), inf if none."""
+    N, S = pos.shape[0], mount_yaw.size
+    psi = yaw[:, None] + mount_yaw[None, :]
+    u = np.stack([np.cos(psi), np.sin(psi)], -1)  # (N, S, 2)
+    o = pos[:, None, :] + offset * u
+    out = np.full((N, S), np.inf)
+    for n in range(N):
+        for s in range(S):
+            for q in range(N):
+                if q == n:
+                    continue
+                for j in range(S):
+                    w = o[q, j] - o[n, s]
+                    L = np.hypot(*w)
+                    if 0 < L <= 2 * max_range and u[n, s] @ w >= cos_half * L and -(u[q, j] @ w) >= cos_half * L:
+                        out[n, s] = min(out[n, s], L)
+    return out
+
+
+def clearance(pos):
+    """(N, N) smallest distance of a third copter's centre to each line of sight at one time."""
+    N = pos.shape[0]
+    out = np.full((N, N), np.inf)
+    for a in range(N):
+        for b in range(N):
+            if a == b:
+                continue
+            A, B = pos[a], pos[b]
+            for c in range(N):
+                if c in (a, b):
+                    continue
+                s = np.clip((pos[c] - A) @ (B - A) / max((B - A) @ (B - A), 1e-300), 0, 1)
+                out[a, b] = min(out[a, b], np.hypot(*(A + s * (B - A) - pos[c])))
+    return out
+
+
+def imu_windows(pos, yaw_unwrapped, t, k, h):
+    """(N, 3): Δv_x, Δv_y (world) and Δψ over the h steps ending at sample k, from exact poses."""
+    v1 = (pos[k] - pos[k - 1]) / (t[k] - t[k - 1])
+    v0 = (pos[k - h] - pos[k - h - 1]) / (t[k - h] - t[k - h - 1])
+    return np.concatenate([v1 - v0, (yaw_unwrapped[k] - yaw_unwrapped[k - h])[:, None]], axis=1)

@@ -1,0 +1,302 @@
+"""Gap diagnosis: scoring rules, statistics, replay kernels vs NumPy references, report and CLI."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import stats
+
+from finkensim import flightlog
+from finkensim.arena import Arena
+from finkensim.cli import main
+from finkensim.config import Config, ConfigError, config_from_dict
+from finkensim.gap import replay as rp
+from finkensim.gap.diagnose import Diagnosis, run_diagnosis
+from finkensim.gap.predictive import _sonar_error, sonar_channel_names
+from finkensim.gap.replay import GapInputError
+from finkensim.gap.report import SPEC_KEYS, spec_report
+from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
+                                   gap_ensemble)
+from finkensim.gap.stats import BlockBootstrap, fdr_significant, time_blocks
+from finkensim.gap.validate import CASES, generate
+from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
+from tests.naive import gap as naive
+
+SMALL = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}
+
+
+# ----------------------------------------------------------------------------------- scoring
+
+def test_crps_ensemble_matches_closed_form_normal():
+    rng = np.random.default_rng(0)
+    n, M = 4000, 400
+    mu, sig = rng.normal(size=n), rng.uniform(0.5, 2.0, n)
+    y = mu + sig * rng.normal(size=n)
+    draws = mu[:, None] + sig[:, None] * rng.normal(size=(n, M))
+    diff = crps_ensemble(draws, y) - crps_normal(mu, sig, y)
+    # the fair estimator is unbiased; its per-reading error has sd ~ sigma/sqrt(M)·O(1)
+    assert abs(diff.mean()) < 5 * diff.std() / math.sqrt(n)
+    assert np.mean(np.abs(diff)) < 0.05
+
+
+def test_crps_normal_known_values():
+    # CRPS(N(0,1), 0) = 2φ(0) − 1/√π
+    assert crps_normal(0.0, 1.0, 0.0) == pytest.approx(2 * stats.norm.pdf(0) - 1 / math.sqrt(math.pi))
+    assert crps_normal(1.0, 2.0, 1.0) == pytest.approx(2 * crps_normal(0.0, 1.0, 0.0))
+
+
+def test_gap_is_zero_mean_when_reality_matches_the_model_and_positive_otherwise():
+    rng = np.random.default_rng(1)
+    n, M = 20000, 24
+    draws = rng.gamma(2.0, 1.0, size=(n, M))
+    y = rng.gamma(2.0, 1.0, size=n)
+    g = gap_ensemble(draws, y)
+    assert abs(g.mean()) < 5 * g.std() / math.sqrt(n)
+    assert gap_ensemble(draws, y * 1.5 + 1.0).mean() > 0.3
+
+
+def test_ensemble_terms_match_brute_force():
+    rng = np.random.default_rng(2)
+    draws, y = rng.normal(size=(50, 16)), rng.normal(size=50)
+    y[3] = np.nan
+    a, b = ensemble_terms(draws, y)
+    na, nb = naive.ensemble_terms(draws, y)
+    np.testing.assert_allclose(a, na, rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(b, nb, rtol=1e-12, equal_nan=True)
+    period = rng.integers(1, 20, size=50)
+    a2, b2 = ensemble_terms_grouped(draws, y, period)
+    na2, nb2 = naive.ensemble_terms(draws, y, period)
+    np.testing.assert_allclose(a2, na2, rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(b2, nb2, rtol=1e-12, equal_nan=True)
+
+
+def test_grouped_pair_term_is_unbiased_when_members_share_an_input():
+    """Members m and m+G share a draw of a random input: all pairs underestimate E|X−X'|, independent pairs do not."""
+    rng = np.random.default_rng(3)
+    n, M, G = 20000, 24, 8
+    shared = rng.normal(size=(n, G))[:, np.arange(M) % G]
+    draws = shared + 0.2 * rng.normal(size=(n, M))
+    true = 2 * math.sqrt(1.04) / math.sqrt(math.pi)  # E|X−X'| for X ~ N(0, 1.04)
+    _, b_all = ensemble_terms(draws, np.zeros(n))
+    _, b_ind = ensemble_terms_grouped(draws, np.zeros(n), np.full(n, G))
+    assert b_all.mean() < 0.95 * true  # 2 of 23 pair partners share the input: about 7 % low
+    assert b_ind.mean() == pytest.approx(true, rel=0.01)
+
+
+def test_brier_gap_zero_mean():
+    rng = np.random.default_rng(4)
+    p = rng.uniform(0, 1, 50000)
+    z = rng.random(50000) < p
+    assert abs(brier_gap(p, z).mean()) < 0.003
+
+
+# ----------------------------------------------------------------------------------- statistics
+
+def test_block_bootstrap_ci_covers_the_mean_for_iid_data():
+    rng = np.random.default_rng(5)
+    hits = 0
+    for k in range(60):
+        v = rng.normal(size=2000)
+        ids = time_blocks(np.zeros(2000, int), np.arange(2000), {0: 2000}, n_blocks_per_flight=40)
+        s = BlockBootstrap(ids, n_boot=300, seed=k).stats(v)
+        hits += s.ci[0] <= 0 <= s.ci[1]
+        assert s.n == 2000 and s.n_blocks == 40
+    assert hits >= 51  # 95 % nominal; P(fewer than 51 of 60) is about 1 %
+
+
+def test_fdr_control():
+    assert list(fdr_significant([0.001, 0.2, np.nan, 0.01])) == [True, False, False, True]
+    assert not fdr_significant([0.04] * 10 + [0.9] * 90).any()
+
+
+# ----------------------------------------------------------------------------------- kernels vs references
+
+def _scene(seed, n=5):
+    rng = np.random.default_rng(seed)
+    cfg = Config()
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    T = 6
+    pos = np.stack([rng.uniform([0.2, 0.2], [2.8, 3.8], size=(n, 2)) for _ in range(T)])
+    yaw = rng.uniform(-np.pi, np.pi, size=(T, n))
+    theta = rng.uniform(0, 0.5, size=(T, arena.n_plates))
+    return cfg, arena, pos, yaw, theta
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10**6))
+def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_reference(seed):
+    cfg, arena, pos, yaw, theta = _scene(seed)
+    sm = SonarModel.from_config(cfg)
+    times = np.arange(pos.shape[0], dtype=np.int64)
+    K, N, S = times.size, pos.shape[1], 4
+    dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
+    rp.sonar_draws(pos, yaw, theta, 1.0, arena.plate_a, arena.plate_b, arena.normal, arena.lever, arena.width,
+                   arena.length, sm.mount_yaw, 0.0, cfg.copters.radius, 3.0, np.zeros(1), sm.cos_half_angle,
+                   rp.SCHEDULE_ALL, 1, times, 0.0, 0.0, 0, 0, 1, dist, kind, xt)
+    d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
+    np.testing.assert_array_equal(dist[..., 0], d_sim)
+    np.testing.assert_array_equal(kind[..., 0], k_sim)
+    for k in range(K):
+        ref = naive.crosstalk_paths(pos[k], yaw[k], sm.mount_yaw, 0.0, 3.0, sm.cos_half_angle)
+        np.testing.assert_allclose(xt[k, ..., 0], ref, rtol=1e-12)
+
+
+def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
+    cfg = Config()
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    pos = np.array([[[1.5, 1.875]]] * 2)  # one copter facing +x at the centre of an east-wall plate
+    yaw = np.zeros((2, 1))
+    theta = np.full((2, arena.n_plates), 0.3)
+    out = {}
+    for g in (0.0, 1.0, 2.0):
+        d, k, x = np.empty((2, 1, 1, 1)), np.empty((2, 1, 1, 1), np.int8), np.empty((2, 1, 1, 1))
+        rp.sonar_draws(pos, yaw, theta, g, arena.plate_a, arena.plate_b, arena.normal, arena.lever, 3.0, 4.0,
+                       np.zeros(1), 0.0, 0.15, 3.0, np.zeros(1), 0.7, 0, 1, np.arange(2, dtype=np.int64), 0.0, 0.0, 0,
+                       0, 1, d, k, x)
+        out[g] = d[0, 0, 0, 0]
+    assert out[0.0] == pytest.approx(1.5)
+    assert out[0.0] - out[1.0] == pytest.approx(arena.lever * np.sin(0.3))
+    assert out[0.0] - out[2.0] == pytest.approx(2 * arena.lever * np.sin(0.3))
+
+
+def test_ranging_draws_and_clearance_match_references():
+    _, _, pos, yaw, _ = _scene(7, n=6)
+    times = np.arange(pos.shape[0], dtype=np.int64)
+    out = np.empty((times.size, 6, 6, 1))
+    rp.ranging_draws(pos, yaw, times, 0.0, 0, 0, 1, out)
+    ref = np.sqrt(((pos[:, :, None] - pos[:, None]) ** 2).sum(-1))
+    np.testing.assert_allclose(out[..., 0], ref, rtol=1e-12, atol=1e-15)
+    clear = np.empty((times.size, 6, 6))
+    rp.ranging_clearance(pos, times, clear)
+    for k in times:
+        r = naive.clearance(pos[k])
+        np.fill_diagonal(r, np.inf)
+        np.testing.assert_allclose(clear[k], r, rtol=1e-12)
+
+
+def test_imu_window_draws_match_reference():
+    rng = np.random.default_rng(8)
+    T, N, h = 40, 3, 5
+    t = np.cumsum(rng.uniform(0.04, 0.06, T))
+    pos = np.cumsum(rng.normal(scale=0.02, size=(T, N, 2)), axis=0)
+    yu = np.cumsum(rng.normal(scale=0.05, size=(T, N)), axis=0)
+    times = np.array([10, 20, 39], dtype=np.int64)
+    out = np.empty((3, N, 3, 1))
+    rp.imu_window_draws(pos, yu, t, times, h, 0.0, 0.0, 0, 0, 1, out)
+    for i, k in enumerate(times):
+        np.testing.assert_allclose(out[i, :, :, 0], naive.imu_windows(pos, yu, t, k, h), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("err,p_const,q_geo", [(0, 0.0, 0.0), (1, 0.0, 0.0), (2, 0.3, 0.0), (3, 0.0, 0.7), (2, 0.2, 0.5)])
+def test_sonar_error_kernel_matches_reference(err, p_const, q_geo):
+    rng = np.random.default_rng(9)
+    n, M = 30, 6
+    dist = rng.uniform(0.1, 3.0, (n, M))
+    kind = rng.integers(0, 3, (n, M)).astype(np.int8)
+    xt = np.where(rng.random((n, M)) < 0.5, rng.uniform(0.2, 6.0, (n, M)), np.inf)
+    fl, ti, ch = rng.integers(0, 3, n), rng.integers(0, 100, n), rng.integers(0, 40, n)
+    args = (dist, kind, xt, fl, ti, ch, 11, err, 0.05, -1.0, 0.0327, 0.01, 1.02, p_const, q_geo, 0.02, 0.2, 3.0)
+    out = np.empty((n, M))
+    _sonar_error(*args, out)
+    np.testing.assert_allclose(out, naive.sonar_error(*args), rtol=1e-12, atol=1e-15)
+
+
+def test_sonar_channel_names():
+    assert sonar_channel_names(np.radians([0, 90, 180, -90])) == ["front", "left", "back", "right"]
+    assert sonar_channel_names(np.radians([3, 45])) == ["front", "sonar1"]
+
+
+# ----------------------------------------------------------------------------------- diagnosis end to end
+
+@pytest.fixture(scope="module")
+def null_logs():
+    logs, cfg, _ = generate(CASES["null"], 11, n_flights=2, duration=30.0)
+    return logs, cfg.replace(SMALL)
+
+
+def test_null_case_reports_no_significant_gap_and_a_spec_report(null_logs):
+    logs, cfg = null_logs
+    rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg))
+    assert rep["verdict"]["significant_gap"] is False
+    assert rep["verdict"]["effect"] is None
+    js = spec_report(rep)
+    assert tuple(js) == SPEC_KEYS
+    json.dumps(js, allow_nan=False)
+    assert js["format"] == "finkensim-gap-report/1"
+    assert js["flights"] == {"train": ["a.npz"], "heldout": ["b.npz"]}
+    gaps = [loc["gap"] for loc in js["locations"]]
+    assert gaps == sorted(gaps, reverse=True)
+    scores = [e["score_heldout"] for e in js["effects"]]
+    assert scores == sorted(scores)
+    for loc in js["locations"]:
+        assert set(loc) == {"sensor", "channel", "feature", "low", "high", "gap", "ci", "n"}
+        assert loc["sensor"] in ("ultrasonic", "ranging", "imu")
+        assert loc["channel"] in ("front", "left", "back", "right", "all")
+    feats = {loc["feature"] for loc in js["locations"] if loc["sensor"] == "ultrasonic"}
+    for required in ("true_range", "wall_distance", "neighbor_distance", "neighbor_in_beam", "speed", "range_rate",
+                     "incidence", "hit_type", "hit_to_copter"):
+        assert required in feats
+    for e in js["effects"]:
+        assert set(e) == {"name", "params", "score_heldout", "gap_after_train", "gap_after_heldout", "shrink_heldout"}
+
+
+def test_single_flight_holds_out_its_second_half(null_logs):
+    logs, cfg = null_logs
+    d = Diagnosis(logs[:1], ["one.npz"], cfg)
+    assert d.train_names == ["one.npz (first half)"] and d.heldout_names == ["one.npz (second half)"]
+    for s, tab in d.tables.items():
+        half = 0.5 * (logs[0].t[-1] - logs[0].t[0])
+        assert np.all(tab.seconds[d.rows_fit[s]] < half) and np.all(tab.seconds[d.rows_ho[s]] >= half)
+
+
+def test_bad_inputs_give_named_errors(null_logs, tmp_path):
+    logs, cfg = null_logs
+    with pytest.raises(GapInputError, match="--heldout names"):
+        Diagnosis(logs, ["a.npz", "b.npz"], cfg, heldout=["c.npz"])
+    with pytest.raises(GapInputError, match="every flight"):
+        Diagnosis(logs, ["a.npz", "b.npz"], cfg, heldout=["a.npz", "b.npz"])
+    bare = flightlog.FlightLog(t=logs[0].t, arena=logs[0].arena, pose=logs[0].pose, copter_ids=logs[0].copter_ids,
+                               meta=logs[0].meta)
+    with pytest.raises(GapInputError, match="no sensor readings"):
+        Diagnosis([bare], ["bare.npz"], cfg)
+    with pytest.raises(ConfigError, match=r"unknown key gap\.draw "):
+        config_from_dict({"gap": {"draw": 3}})
+    with pytest.raises(ConfigError, match=r"gap\.draws = 2"):
+        config_from_dict({"gap": {"draws": 2}})
+    with pytest.raises(GapInputError, match="unknown effects"):
+        run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg), ["wall_bulg"])
+
+
+def test_cli_gap_end_to_end_and_errors(null_logs, tmp_path, capsys):
+    logs, cfg = null_logs
+    paths = []
+    for i, log in enumerate(logs):
+        p = tmp_path / f"flight{i}.npz"
+        flightlog.save(log, p)
+        paths.append(str(p))
+    conf = tmp_path / "sim.toml"
+    conf.write_text('[walls]\nbending = false\n[sonar]\ncrosstalk = "off"\n[gap]\ndraws = 12\n'
+                    'max_samples_per_flight = 300\nfit_max_readings = 5000\nn_boot = 200\neffects = ["sonar_bias", "imu_bias"]\n')
+    out = tmp_path / "gap"
+    assert main(["gap", *paths, "--config", str(conf), "--out", str(out), "--no-progress"]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["verdict"]["significant_gap"] is False
+    assert {e["name"] for e in rep["effects"]} == {"sonar_bias", "imu_bias"}
+    assert (out / "report.md").exists() and (out / "gap_by_condition.png").exists()
+    # malformed log: the flight-log validator's message, exit code 2
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, format=np.array("finkensim-flightlog/1"), t=np.array([0.0, 0.0]))
+    capsys.readouterr()
+    assert main(["gap", str(bad), "--out", str(out)]) == 2
+    assert "finkensim gap: error:" in capsys.readouterr().err
+    assert main(["gap", str(tmp_path / "missing.npz")]) == 2
+    bad_conf = tmp_path / "bad.toml"
+    bad_conf.write_text("[gap]\ndraws = 2\n")
+    capsys.readouterr()
+    assert main(["gap", *paths, "--config", str(bad_conf)]) == 2
+    assert "gap.draws = 2" in capsys.readouterr().err
+    assert main(["gap", *paths, "--config", str(conf), "--heldout", "nope.npz", "--out", str(out)]) == 2
