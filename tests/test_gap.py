@@ -300,3 +300,12 @@ def test_cli_gap_end_to_end_and_errors(null_logs, tmp_path, capsys):
     assert main(["gap", *paths, "--config", str(bad_conf)]) == 2
     assert "gap.draws = 2" in capsys.readouterr().err
     assert main(["gap", *paths, "--config", str(conf), "--heldout", "nope.npz", "--out", str(out)]) == 2
+
+
+def test_every_model_parameter_belongs_to_exactly_one_sensor_for_score_caching():
+    from finkensim.gap.diagnose import _SENSOR_PREFIX, _SHARED_FIELDS
+    from finkensim.gap.predictive import ModelParams
+
+    for k in vars(ModelParams()):
+        owners = [s for s, pre in _SENSOR_PREFIX.items() if k.startswith(pre)]
+        assert k in _SHARED_FIELDS or len(owners) == 1, f"ModelParams.{k} maps to {owners}: fix _SENSOR_PREFIX"

@@ -27,7 +27,7 @@ from scipy import optimize
 from ..config import Config
 from ..flightlog import FlightLog
 from . import effects as fx
-from .predictive import ImuTable, ModelParams, RangingTable, SonarTable
+from .predictive import LRU, ImuTable, ModelParams, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
 from .scoring import brier, brier_gap, ensemble_terms_grouped
 from .stats import BlockBootstrap, fdr_significant
@@ -83,6 +83,7 @@ class Diagnosis:
             raise GapInputError("the logs carry no sensor readings (ultrasonic, ranging or imu): nothing to compare")
         self._choose_rows()
         self._blocks()
+        self._score_cache = LRU(64)
         self.scale = {}
         for s in self.tables:
             a, _ = self._terms(s, self.base, self.rows_fit[s])
@@ -150,7 +151,20 @@ class Diagnosis:
         return ensemble_terms_grouped(np.ascontiguousarray(D), np.ascontiguousarray(tab.y[rows]), period)
 
     def score_rows(self, sensor, p: ModelParams, rows):
-        """Per-row normalised (CRPS, gap) of a sensor under parameters p. Each (len(rows),)."""
+        """Per-row normalised (CRPS, gap) of a sensor under parameters p. Each (len(rows),).
+
+        Cached by the parameters that this sensor depends on, so effects on other sensors (and
+        repeated evaluations of the same model) cost nothing.
+        """
+        key = (sensor, id(rows), rows.size, _sensor_params(sensor, p))
+        hit = self._score_cache.get(key)
+        if hit is not None:
+            return hit
+        out = self._score_rows(sensor, p, rows)
+        self._score_cache.put(key, out)
+        return out
+
+    def _score_rows(self, sensor, p: ModelParams, rows):
         a, b = self._terms(sensor, p, rows)
         sc = self.scale.get(sensor, 1.0)
         crps = (a - 0.5 * b) / sc
@@ -309,6 +323,18 @@ class Diagnosis:
         return res
 
 
+_SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
+_SENSOR_PREFIX = {"ultrasonic": ("sonar_", "xtalk_", "wall_gain", "beam_", "latency_sonar"),
+                  "ranging": ("ranging_", "nlos_", "dropout_", "latency_ranging"),
+                  "imu": ("acc_", "gyro_", "latency_imu")}
+
+
+def _sensor_params(sensor: str, p: ModelParams) -> tuple:
+    """The values of the fields of p that a sensor's predictive distribution depends on."""
+    pre = _SENSOR_PREFIX[sensor]
+    return tuple((k, v) for k, v in vars(p).items() if k in _SHARED_FIELDS or k.startswith(pre))
+
+
 def _simplex(x0, step, lo, hi):
     pts = [np.array(x0, float)]
     for i in range(len(x0)):
@@ -398,7 +424,7 @@ _CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "ranging_dropout": _fit_dropout, "pos
 
 # ---------------------------------------------------------------------- the whole diagnosis
 
-def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dict:
+def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4) -> dict:
     """Locations, effect fits, greedy selection and verdict, as a gap-report dict (spec/gap-report.md)
     plus private keys (prefixed ``_``) for the Markdown report and figures."""
     cfg = diag.cfg.gap
@@ -453,8 +479,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4) -> dic
     added, pool = [], list(first)
     ties = []
     while significant and pool and len(added) < max_added:
-        if added:  # refit the remaining candidates on top of what was added
-            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool),
+        if added:  # refit the leading remaining candidates on top of what was added
+            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool[:refit_top]),
                           key=lambda r: r.score_heldout)
         best = pool[0]
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)

@@ -396,11 +396,17 @@ class RangingTable(Table):
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
-        model = self._model(p)
+        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.ranging_error, p.ranging_sigma,
+               p.ranging_max, seed, M)
+        hit = self.cache.get(key)
+        if hit is None:
+            (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+            model = self._model(p)
+            # one key per call; the flat index keeps draws aligned with rows and draws (common random numbers)
+            y0 = model.sample(np.minimum(x, p.ranging_max).ravel(), seed=seed, env=0, step=0, copter=0).reshape(x.shape)
+            hit = self.cache.put(key, (x, y0, period))
+        x, y, period = hit
         inside = x <= p.ranging_max
-        # one key per call; the flat index keeps draws aligned with rows and draws (common random numbers)
-        y = model.sample(np.minimum(x, p.ranging_max).ravel(), seed=seed, env=0, step=0, copter=0).reshape(x.shape)
         if p.nlos_bias != 0.0:
             clear = self.features["los_clearance"][rows]
             y = y + (p.nlos_bias * np.exp(-((clear / max(p.nlos_width, 1e-6)) ** 2)))[:, None]
