@@ -265,13 +265,7 @@ class SonarTable(Table):
             rr = _range_rate(out[..., 0], f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
             kk, nn, ss = np.meshgrid(np.arange(K), np.arange(N), np.arange(S), indexing="ij")
             ok = np.isfinite(y)
-            cols["y"].append(y[ok])
-            cols["flight"].append(np.full(ok.sum(), f.index))
-            cols["sample"].append(kk[ok])
-            cols["time"].append(f.samples[kk[ok]])
-            cols["copter"].append(nn[ok])
-            cols["channel"].append(ss[ok])
-            cols["sec"].append(f.t[f.samples[kk[ok]]] - f.t[0])
+            _append_identity(cols, f, y, ok, kk, nn, ss)
             for j, name in enumerate(("true_range", "hit_type", "incidence", "hit_to_copter", "neighbor_in_beam",
                                       "plate_shift", "wall_distance")):
                 feats[name].append(out[..., j][ok])
@@ -346,16 +340,10 @@ class RangingTable(Table):
             tr = np.minimum(d, cfg.ranging.max_range)
             rr = _range_rate(tr, f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
             nd = _nearest_neighbor(P)
-            wd = np.minimum(np.minimum(P[..., 0], f.arena.width - P[..., 0]), np.minimum(P[..., 1], f.arena.length - P[..., 1]))
+            wd = _wall_distance(P, f.arena)
             sel = off
-            cols["y"].append(y[sel])
+            _append_identity(cols, f, y, sel, kk, aa, bb)
             cols["miss"].append(miss[sel])
-            cols["flight"].append(np.full(sel.sum(), f.index))
-            cols["sample"].append(kk[sel])
-            cols["time"].append(f.samples[kk[sel]])
-            cols["copter"].append(aa[sel])
-            cols["channel"].append(bb[sel])
-            cols["sec"].append(f.t[f.samples[kk[sel]]] - f.t[0])
             cols["clear"].append(clear[sel])
             cols["tr"].append(tr[sel])
             cols["rr"].append(rr[sel])
@@ -471,15 +459,9 @@ class ImuTable(Table):
             ok = np.isfinite(y)
             sp = _speed(f)[pos_idx]
             P = f.pos[samples]
-            wd = np.minimum(np.minimum(P[..., 0], f.arena.width - P[..., 0]), np.minimum(P[..., 1], f.arena.length - P[..., 1]))
+            wd = _wall_distance(P, f.arena)
             am = np.sqrt(y[..., 0] ** 2 + y[..., 1] ** 2) / ws[..., 0]
-            cols["y"].append(y[ok])
-            cols["flight"].append(np.full(ok.sum(), f.index))
-            cols["sample"].append(kk[ok])
-            cols["time"].append(f.samples[kk[ok]])
-            cols["copter"].append(nn[ok])
-            cols["channel"].append(ch[ok])
-            cols["sec"].append(f.t[f.samples[kk[ok]]] - f.t[0])
+            _append_identity(cols, f, y, ok, kk, nn, ch)
             cols["g0"].append(g0[ok])
             cols["g1"].append(g1[ok])
             cols["ws"].append(ws[ok])
@@ -530,6 +512,25 @@ class ImuTable(Table):
         _gauss_error(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch, seed,
                      np.ascontiguousarray(sd), np.zeros(rows.size), np.zeros(rows.size), np.ascontiguousarray(bias), out)
         return out, period
+
+
+def _append_identity(cols, f, y, sel, sample_pos, copter, channel):
+    """Append the identity columns of the selected readings y[sel] of flight f to ``cols``.
+
+    sample_pos, copter, channel: index arrays shaped like y (sample_pos indexes ``f.samples``).
+    """
+    cols["y"].append(y[sel])
+    cols["flight"].append(np.full(int(np.count_nonzero(sel)), f.index))
+    cols["sample"].append(sample_pos[sel])
+    cols["time"].append(f.samples[sample_pos[sel]])
+    cols["copter"].append(copter[sel])
+    cols["channel"].append(channel[sel])
+    cols["sec"].append(f.t[f.samples[sample_pos[sel]]] - f.t[0])
+
+
+def _wall_distance(P, arena):
+    """(..., ) distance (m) of copter centres P (..., 2) to the nearest wall line."""
+    return np.minimum(np.minimum(P[..., 0], arena.width - P[..., 0]), np.minimum(P[..., 1], arena.length - P[..., 1]))
 
 
 def _nearest_neighbor(P):
