@@ -377,7 +377,8 @@ def cmd_gap_validate(args) -> int:
             except (ValueError, KeyError):
                 continue
     rows = []
-    jobs = [(c, args.seed + t) for c in cases for t in range(args.trials)]
+    # trial-major: an interrupted run still has every case's first trials
+    jobs = [(c, args.seed + t) for t in range(args.trials) for c in cases]
     for case, seed in tqdm(jobs, desc="gap-validate", disable=args.no_progress, file=sys.stderr):
         key = (case, seed, args.flights, args.duration)
         if key not in done:
