@@ -5,11 +5,13 @@
     log, traj, world = simulate_flight(cfg, duration=10.0, seed=3)
     flightlog.save(log, "flight.npz")
 
-:func:`simulate_flight` runs exactly one environment (B = 1) of the configured behaviour with
-:meth:`World.rollout <finkensim.world.World.rollout>` (compiled, no per-step Python) and turns
-the recorded trajectory into a :class:`~finkensim.flightlog.FlightLog`. Sensor readings are
-added in one place, :func:`_sensor_blocks`, so each sensor model plugs in without touching
-the rest of the pipeline.
+:func:`simulate_flight` runs exactly one environment (B = 1) of the configured behaviour and turns
+the recorded trajectory into a :class:`~finkensim.flightlog.FlightLog`. The open-loop behaviours
+(``random_walk``, ``hover``) fly in :meth:`World.rollout <finkensim.world.World.rollout>`; the
+closed-loop ones that read sensors (``attraction_repulsion``) in the compiled closed loop of
+:class:`finkensim.swarm.SwarmSim` (sense → behave → step), and the log's sensor blocks are then the
+very readings the behaviour acted on. Sensor readings are added in one place,
+:func:`_sensor_blocks`, so each sensor model plugs in without touching the rest of the pipeline.
 """
 from __future__ import annotations
 
@@ -84,13 +86,20 @@ def load_scenario(source: str | Path | Mapping[str, Any] | Config | None = None)
     return load_config(source)
 
 
-def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState, ideal: bool = False) -> dict[str, Any]:
+def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState, ideal: bool = False,
+                   recorded=None) -> dict[str, Any]:
     """Sensor readings of one simulated flight, as keyword arguments of :class:`FlightLog`.
 
     The one place where sensor models join the flight log. ``traj`` holds the recorded states of
     the single environment (``traj.pose`` (T, 1, N, 3), ``acc`` (T, 1, N, 2), ``yaw_rate`` (T, 1, N),
     ``theta`` (T, 1, S)); sample k uses the random numbers of step k, keyed by ``state0.seed`` and
     ``state0.env_ids``, exactly as an online sensor would at that step.
+
+    ``recorded``: the :class:`~finkensim.swarm.SwarmRecord` of a closed-loop flight (T samples). Its
+    sonar, down-sonar, ranging and IMU readings — the ones the behaviour used — are taken as they are
+    (the error-free values are still computed from ``traj``), and its wall judgements are added as the
+    extra ``ultrasonic_wall_flag`` (T, N, 4) int8 (1 = the behaviour's wall check took the reading for
+    a wall).
 
     Returns ``ultrasonic`` (T, N, 4) m with ``ultrasonic_yaw``/``ultrasonic_offset``; ``ranging``
     (T, N, N) m; ``imu_acc`` (T, N, 2) m/s² and ``imu_gyro`` (T, N) rad/s; each only when its
@@ -107,27 +116,37 @@ def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState, ideal: bo
     T, _, N, _ = traj.pose.shape
     out: dict[str, Any] = {}
     extras: dict[str, np.ndarray] = {}
+    rec = recorded
     if cfg.sonar.enabled:
         sonar = SonarModel.from_config(cfg)
-        res = ultrasonic_from_trajectory(traj, world.arena, sonar, seed, env_ids, state0.step, return_ideal=ideal)
-        readings = res[0] if ideal else res
+        if rec is None or ideal:
+            res = ultrasonic_from_trajectory(traj, world.arena, sonar, seed, env_ids, state0.step, return_ideal=ideal)
+            readings = res[0] if ideal else res
+        if rec is not None:
+            readings = rec.sonar
+            extras["ultrasonic_wall_flag"] = np.ascontiguousarray(rec.wall[:, 0]).astype(np.int8)
         out["ultrasonic"] = np.ascontiguousarray(readings[:, 0])
         out["ultrasonic_yaw"] = np.deg2rad(np.asarray(cfg.sonar.yaw_deg, dtype=float))
         out["ultrasonic_offset"] = float(cfg.sonar.offset)
         if ideal:
             extras["ultrasonic_ideal"] = np.ascontiguousarray(res[1][:, 0])
             extras["ultrasonic_hit_type"] = np.ascontiguousarray(res[2][:, 0]).astype(np.int64)
-        if cfg.sonar.down_enabled:
+        if cfg.sonar.down_enabled and rec is not None:
+            extras["ultrasonic_down"] = np.ascontiguousarray(rec.sonar_down[:, 0])
+        elif cfg.sonar.down_enabled:
             pos1 = np.zeros((1, N, 2))
             extras["ultrasonic_down"] = np.stack(
                 [down_readings(pos1, sonar, seed, env_ids, state0.step + k)[0] for k in range(T)])
     if cfg.ranging.enabled:
         model = RangingModel.from_config(cfg.ranging)
         beacons = np.asarray(cfg.ranging.beacons, dtype=float).reshape(-1, 2)
-        rows = np.empty((T, N, N + beacons.shape[0]))
-        for k in range(T):
-            pos = np.ascontiguousarray(traj.pose[k, :, :, :2])
-            rows[k] = ranging_readings(pos, beacons, seed, env_ids, state0.step + k, model)[0]
+        if rec is not None:
+            rows = rec.ranging[:, 0]
+        else:
+            rows = np.empty((T, N, N + beacons.shape[0]))
+            for k in range(T):
+                pos = np.ascontiguousarray(traj.pose[k, :, :, :2])
+                rows[k] = ranging_readings(pos, beacons, seed, env_ids, state0.step + k, model)[0]
         out["ranging"] = np.ascontiguousarray(rows[:, :, :N])
         if beacons.shape[0]:
             extras["ranging_beacons"] = np.ascontiguousarray(rows[:, :, N:])
@@ -138,7 +157,10 @@ def _sensor_blocks(world: World, traj: Trajectory, state0: WorldState, ideal: bo
                                  state0.step + k, model, ideal=True)[0, :, :N] for k in range(T)])
     if cfg.imu.enabled:
         imu = ImuModel.from_config(cfg.imu, world.dt)
-        acc, gyro = imu_from_trajectory(traj, imu, seed, env_ids, state0.step)
+        if rec is not None:
+            acc, gyro = rec.imu_acc, rec.imu_gyro
+        else:
+            acc, gyro = imu_from_trajectory(traj, imu, seed, env_ids, state0.step)
         out["imu_acc"] = np.ascontiguousarray(acc[:, 0])
         out["imu_gyro"] = np.ascontiguousarray(gyro[:, 0])
         if ideal:
@@ -157,6 +179,38 @@ def _n_steps(duration: float, dt: float) -> int:
     return n
 
 
+def _closed_loop_flight(cfg: Config, n_steps: int):
+    """(world, state0, traj, record) of ``n_steps`` closed-loop steps of one environment in
+    :class:`~finkensim.swarm.SwarmSim` (compiled).
+
+    The record holds the poses, plate angles, every enabled sensor's readings and wall judgements, and
+    the world-frame commands. The kinematic quantities a flight log also needs (acceleration, yaw rate)
+    come from replaying those commands through :meth:`World.rollout <finkensim.world.World.rollout>`:
+    the same deterministic step function, so the replayed states equal the closed loop's bit for bit
+    (checked)."""
+    from .swarm import SwarmSim
+
+    sim = SwarmSim(cfg)
+    s0 = sim.init(n_envs=1, seed=cfg.simulation.seed)
+    names = ("pose", "theta", "cmd_vel", "cmd_yaw_rate") + tuple(
+        n for n in ("sonar", "sonar_down", "ranging", "imu_acc", "imu_gyro", "wall") if n in sim.recordable())
+    _, rec = sim.rollout(s0, n_steps, record=names)
+    world, state0 = sim.world, s0.world
+    cmd_v, cmd_w = rec.cmd_vel, rec.cmd_yaw_rate
+    import numba
+
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)  # one environment: a parallel region per step only costs (a lot on a busy machine)
+    try:
+        _, traj = world.rollout(state0, n_steps, controller=lambda w, s: (cmd_v[s.step - state0.step],
+                                                                          cmd_w[s.step - state0.step]))
+    finally:
+        numba.set_num_threads(threads)
+    if not (np.array_equal(traj.pose, rec.pose) and np.array_equal(traj.theta, rec.theta)):
+        raise RuntimeError("replaying the closed loop's commands gave another trajectory; please report this bug")
+    return world, state0, traj, rec
+
+
 def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, *, duration: float | None = None,
                     seed: int | None = None, ideal: bool = False) -> tuple[FlightLog, Trajectory, World]:
     """Simulate one flight of the configured behaviour and build its flight log.
@@ -168,7 +222,11 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         ideal: also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
 
     One environment (B = 1, environment index 0) is placed at random and flown for
-    round(duration / dt) steps by ``behaviour.kind`` in compiled code. The log has
+    round(duration / dt) steps by ``behaviour.kind`` in compiled code: ``random_walk`` and ``hover``
+    in :meth:`World.rollout <finkensim.world.World.rollout>`, ``attraction_repulsion`` in the closed
+    loop of :class:`~finkensim.swarm.SwarmSim`, whose sensor readings (those the behaviour acted on)
+    become the log's sensor blocks, with its wall judgements as the extra ``ultrasonic_wall_flag``
+    (T, N, 4) int8. The log has
     T = steps + 1 samples at t = 0, dt, ..., duration (the state before each step plus the
     final one). ``duration``/``seed`` overrides are written into the config, so
     ``meta["config"]`` always describes the run exactly: ``config_from_dict(log.meta["config"])``
@@ -196,10 +254,16 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     sim = cfg.simulation
     n_steps = _n_steps(sim.duration, sim.dt)
 
-    world = World(cfg)
-    state0 = world.init(n_envs=1, seed=sim.seed)
+    from .episode import needs_sensors
+
+    recorded = None
     # n_steps + 1 steps record the states at t = 0 .. duration inclusive
-    _, traj = world.rollout(state0, n_steps + 1, controller=cfg.behaviour.kind)
+    if needs_sensors(cfg.behaviour.kind):
+        world, state0, traj, recorded = _closed_loop_flight(cfg, n_steps + 1)
+    else:
+        world = World(cfg)
+        state0 = world.init(n_envs=1, seed=sim.seed)
+        _, traj = world.rollout(state0, n_steps + 1, controller=cfg.behaviour.kind)
 
     n = world.n_copters
     meta: dict[str, Any] = {
@@ -216,7 +280,7 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     }
     extras: dict[str, np.ndarray] = {"wall_theta": np.ascontiguousarray(traj.theta[:, 0])}
 
-    blocks = dict(_sensor_blocks(world, traj, state0, ideal=ideal))
+    blocks = dict(_sensor_blocks(world, traj, state0, ideal=ideal, recorded=recorded))
     meta.update(blocks.pop("meta", {}) or {})
     extras.update(blocks.pop("extras", {}) or {})
 

@@ -31,6 +31,25 @@ or, instead of ``[grid]``, a random design::
     "walls.threshold" = { low = 0.25, high = 2.0, log = true }
     "behaviour.kind" = { choices = ["random_walk", "hover"] }
 
+**Linked settings: named variants.** A factor whose levels each set several keys at once (e.g. a
+sensor model = an error model *and* a cross-talk model) is a ``[variants.<factor>]`` table: each
+entry is one level, a name and the dotted keys it sets. Levels are crossed with the grid (or the
+random design) like any other factor; the factor comes first (outermost), in file order, and its
+results column ``<factor>`` holds the level name::
+
+    [variants.sonar]
+    ideal = { "sonar.error" = "none", "sonar.crosstalk" = "off" }
+    seed = { "sonar.error" = "seed", "sonar.crosstalk" = "constant", "sonar.crosstalk_probability" = 0.68 }
+    geometric = { "sonar.error" = "rayleigh", "sonar.crosstalk" = "geometric" }   # {} = the base values
+
+    [grid]
+    "walls.bending" = [false, true]            # 3 sonar levels x 2 = 6 combinations
+
+A key a level leaves out takes its base value. Each level is checked as a whole on the base config
+(so linked keys may depend on each other); a key set by a variant may not also be swept by the grid
+or by another variant factor, two levels of one factor may not give the same configuration, and a
+factor name may not contain a dot or clash with a results column.
+
 Dotted keys may also be written as TOML tables (``[grid.copters] n = [4, 8]``). Everything is
 checked before any run starts: unknown keys (with a suggestion), empty lists, values of the wrong
 type or range (every config of the design is built through :meth:`Config.replace`), behaviours
@@ -86,7 +105,8 @@ else:  # pragma: no cover
 __all__ = ["SweepError", "Sweep", "Run", "EXECUTORS", "run_sweep", "load_results", "summarize", "plot_summary"]
 
 EXECUTORS = ("serial", "process", "dask")
-TOP_KEYS = ("description", "replicates", "duration", "seed", "metrics", "base", "grid", "random")
+TOP_KEYS = ("description", "replicates", "duration", "seed", "metrics", "base", "variants", "grid", "random")
+_RESULT_COLUMNS = ("run_id", "combination", "replicate", "seed", "status", "error", "elapsed")
 DEFAULT_REPLICATES = 20
 RESERVED_KEYS = {
     "simulation.seed": "the seed of each run derives from the top-level 'seed' of the sweep",
@@ -211,15 +231,19 @@ class Sweep:
 
     Build with :meth:`from_toml` / :meth:`from_dict`, or directly::
 
-        Sweep(base_cfg, {"copters.n": [4, 8], "behaviour.speed": [0.2, 0.4]}, replicates=5, duration=20.0)
+        Sweep(base_cfg, {"copters.n": [4, 8], "behaviour.speed": [0.2, 0.4]}, replicates=5, duration=20.0,
+              variants={"sonar": {"ideal": {"sonar.error": "none", "sonar.crosstalk": "off"}, "default": {}}})
 
-    (a mapping of lists is a full-factorial grid). Every config of the design is built on
-    construction, so a wrong value is a :class:`SweepError` before anything runs.
+    (a mapping of lists is a full-factorial grid; ``variants`` maps factor → level name → dotted keys,
+    crossed with it). Every config of the design is built on construction, so a wrong value is a
+    :class:`SweepError` before anything runs.
 
     Attributes:
         base: the base :class:`Config` (with ``duration`` applied).
-        parameters: the swept keys, in file order.
-        combinations: one dict (parameter → canonical value, as the built config holds it) per combination.
+        parameters: the variant factors (file order), then the swept keys (file order).
+        combinations: one dict per combination: variant factor → level name, swept key → canonical
+            value (as the built config holds it).
+        variants: factor → level name → {dotted key: canonical value} (empty when there are none).
         configs: the :class:`Config` of each combination.
         replicates, seed, duration, metrics, design ("grid", "random" or "single"), source, text.
     """
@@ -228,7 +252,8 @@ class Sweep:
                  grid: Mapping[str, Sequence[Any]] | None = None, *, replicates: int = DEFAULT_REPLICATES,
                  seed: int = 0, duration: float | None = None, metrics: Iterable[str] | None = None,
                  combinations: Sequence[Mapping[str, Any]] | None = None, design: str | None = None,
-                 source: str = "sweep", text: str | None = None, description: str = ""):
+                 source: str = "sweep", text: str | None = None, description: str = "",
+                 variants: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None):
         p = _Parser(source)
         self.source, self.text, self.description = source, text, description
         self.replicates = p.integer("replicates", replicates, 1)
@@ -284,11 +309,25 @@ class Sweep:
         if not combos:
             raise p.error("the design has no combinations")
 
+        self.variants = self._check_variants(p, variants, self.parameters)
+        if self.variants and self.design == "single":
+            self.design = "grid"
+        swept = self.parameters
+        self.parameters = tuple(self.variants) + swept
+        choices = list(itertools.product(*[[(f, name) for name in levels] for f, levels in self.variants.items()]))
+        crossed = []  # (labels, updates) per combination: variant levels outermost
+        for choice in choices:
+            settings: dict[str, Any] = {}
+            for factor, name in choice:
+                settings.update(self.variants[factor][name])
+            for combo in combos:
+                crossed.append(({**dict(choice), **combo}, {**settings, **combo}))
+
         self.configs: list[Config] = []
         self.combinations: list[dict[str, Any]] = []
-        for k, combo in enumerate(combos):
+        for k, (combo, updates) in enumerate(crossed):
             try:
-                cfg = self.base.replace(combo)
+                cfg = self.base.replace(updates)
                 n_steps = int(round(cfg.simulation.duration / cfg.simulation.dt))
                 if n_steps < 1:
                     raise ConfigError(f"simulation.duration = {cfg.simulation.duration!r}: expected at least one step "
@@ -297,7 +336,53 @@ class Sweep:
             except ConfigError as exc:
                 raise p.error(f"combination {k} ({format_params(combo)}): {exc}") from None
             self.configs.append(cfg)
-            self.combinations.append({key: _get(cfg, key) for key in self.parameters})
+            self.combinations.append({**{f: combo[f] for f in self.variants}, **{key: _get(cfg, key) for key in swept}})
+
+    def _check_variants(self, p: _Parser, variants, swept: Sequence[str]) -> dict[str, dict[str, dict[str, Any]]]:
+        """factor → level → {key: canonical value}, checked: names, keys, whole levels on the base config,
+        no key set twice (by two factors, or by a factor and the grid), no two levels alike."""
+        if variants is None:
+            return {}
+        if not isinstance(variants, Mapping):
+            raise p.error(f"variants = {variants!r}: expected tables [variants.<factor>] of level = {{dotted keys}}")
+        out: dict[str, dict[str, dict[str, Any]]] = {}
+        owner: dict[str, str] = {key: "[grid]" for key in swept}
+        for factor, levels in variants.items():
+            where = f"[variants.{factor}]"
+            if not isinstance(factor, str) or not factor or "." in factor:
+                raise p.error(f"{where}: a variant factor name must be a non-empty name without dots "
+                              "(it names a results column; dotted names are config keys)")
+            if factor in swept or factor == "profile" or factor in _RESULT_COLUMNS or factor in METRICS:
+                raise p.error(f"{where}: the factor name {factor!r} clashes with a results column; rename it")
+            if not isinstance(levels, Mapping):
+                raise p.error(f"{where} = {levels!r}: expected a table of levels, e.g. "
+                              f"name = {{ \"sonar.error\" = \"none\" }}")
+            if not levels:
+                raise p.error(f"{where} is empty: expected at least one level name = {{dotted config keys}}")
+            out[factor] = {}
+            built: dict[str, Config] = {}
+            for name, settings in levels.items():
+                lwhere = f"[variants.{factor}] {name}"
+                if not isinstance(settings, Mapping):
+                    raise p.error(f"{lwhere} = {settings!r}: expected a table of dotted config keys, e.g. "
+                                  f"{{ \"sonar.error\" = \"none\" }} ({{}} = the base values)")
+                flat = p.flatten(lwhere, settings, lambda v: False)
+                for key in flat:
+                    p.check_key(f"variants.{factor}.{name}", key)
+                    if key in owner and owner[key] != where:
+                        raise p.error(f"{lwhere} sets {key}, which {owner[key]} also sets: a key belongs to one "
+                                      "factor")
+                    owner[key] = where
+                try:
+                    cfg = self.base.replace(flat) if flat else self.base
+                except ConfigError as exc:
+                    raise p.error(f"{lwhere}: {exc}") from None
+                for other, other_cfg in built.items():
+                    if other_cfg == cfg:
+                        raise p.error(f"{where}: levels {other!r} and {name!r} give the same configuration")
+                built[name] = cfg
+                out[factor][name] = {key: _get(cfg, key) for key in flat}
+        return out
 
     def _value(self, p: _Parser, table: str, key: str, value):
         """The canonical form of one swept value (as a Config holds it), checked on the base config."""
@@ -365,6 +450,9 @@ class Sweep:
             raise p.error(f"duration = {duration!r}: expected a number of seconds > 0")
 
         base = cls._base_from_table(p, data.get("base", {}), base_dir)
+        variants = data.get("variants")
+        if variants is not None and not isinstance(variants, Mapping):
+            raise p.error(f"variants = {variants!r}: expected tables [variants.<factor>] of level = {{dotted keys}}")
 
         if "grid" in data and "random" in data:
             raise p.error("found both [grid] and [random]: a sweep uses one design")
@@ -374,14 +462,14 @@ class Sweep:
             if not isinstance(table, Mapping):
                 raise p.error(f"grid = {table!r}: expected a table [grid] of dotted keys -> lists")
             grid = p.flatten("grid", table, lambda v: any(k in v for k in _SPEC_KEYS))
-            if not grid:
+            if not grid and not variants:
                 raise p.error("[grid] is empty: expected dotted config keys -> lists of values")
         elif "random" in data:
             combinations = cls._random_design(p, data["random"], base, data.get("seed", 0), duration)
             design = "random"
         return cls(base, grid, replicates=data.get("replicates", DEFAULT_REPLICATES), seed=data.get("seed", 0),
                    duration=duration, metrics=metrics, combinations=combinations, design=design, source=source,
-                   text=text, description=description)
+                   text=text, description=description, variants=variants)
 
     @staticmethod
     def _base_from_table(p: _Parser, table, base_dir: Path) -> Config:
@@ -506,9 +594,11 @@ class Sweep:
 
     def fingerprint(self) -> str:
         """Hash of everything that decides the results (configs, replicates, seed, metrics)."""
-        payload = json.dumps({"configs": [c.to_dict() for c in self.configs], "parameters": list(self.parameters),
-                              "replicates": self.replicates, "seed": self.seed, "metrics": list(self.metrics)},
-                             sort_keys=True, default=str)
+        content = {"configs": [c.to_dict() for c in self.configs], "parameters": list(self.parameters),
+                   "replicates": self.replicates, "seed": self.seed, "metrics": list(self.metrics)}
+        if self.variants:  # level names are results columns too (unchanged hash for sweeps without variants)
+            content["levels"] = [{f: c[f] for f in self.variants} for c in self.combinations]
+        payload = json.dumps(content, sort_keys=True, default=str)
         return hashlib.sha256(payload.encode()).hexdigest()
 
     def __repr__(self):
@@ -766,6 +856,8 @@ def _prepare_out(out: Path, sweep: Sweep, resume: bool, overwrite: bool) -> None
             stale.unlink()
         info = {"fingerprint": fingerprint, "finkensim": __version__, "source": sweep.source,
                 "description": sweep.description, "design": sweep.design, "parameters": list(sweep.parameters),
+                "variants": {f: {n: {k: _column_value(v) for k, v in lv.items()} for n, lv in levels.items()}
+                             for f, levels in sweep.variants.items()},
                 "combinations": [{k: _column_value(v) for k, v in c.items()} for c in sweep.combinations],
                 "replicates": sweep.replicates, "seed": sweep.seed, "duration": sweep.duration,
                 "metrics": list(sweep.metrics), "n_runs": sweep.n_runs, "sweep_toml": sweep.text,
@@ -814,44 +906,84 @@ def summarize(results, parameters: Sequence[str] | None = None, metrics: Sequenc
     return pd.DataFrame(rows)
 
 
+def _factorial_layout(summary, parameters: Sequence[str]):
+    """(groups, series) for a full-factorial summary of >= 2 parameters: the last parameter as coloured
+    series, the others as x groups (file order), each (group, series) pair exactly one row; else None."""
+    if len(parameters) < 2 or len(summary) > 60:
+        return None
+    *outer, last = parameters
+    keys = [tuple(summary[p].iloc[i] for p in outer) for i in range(len(summary))]
+    series = list(dict.fromkeys(summary[last].tolist()))
+    groups = list(dict.fromkeys(keys))
+    pairs = set(zip(keys, summary[last].tolist()))
+    if len(series) < 2 or len(pairs) != len(summary) or len(groups) * len(series) != len(summary):
+        return None
+    return groups, series
+
+
 def plot_summary(summary, parameters: Sequence[str], metrics: Sequence[str]):
-    """A matplotlib Figure: one panel per metric, mean ± CI (error bars) for each combination."""
+    """A matplotlib Figure: one panel per metric, mean ± CI (error bars) for each combination.
+
+    A full-factorial design of two or more parameters is drawn grouped: the last parameter as
+    coloured, side-by-side markers (legend), the other parameters' combinations along x.
+    """
     from matplotlib.figure import Figure
 
     n = len(metrics)
     ncols = min(3, n)
     nrows = math.ceil(n / ncols)
     K = len(summary)
-    width = max(4.5 * ncols, min(24.0, (0.3 * K + 1.5) * ncols))
+    layout = _factorial_layout(summary, parameters)
+    n_x = len(layout[0]) if layout else K
+    width = max(4.5 * ncols, min(24.0, (0.3 * n_x + 1.5 + (0.6 if layout else 0.0)) * ncols))
     fig = Figure(figsize=(width, 3.4 * nrows + (1.2 if K > 1 else 0.4)), layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False)
-    x = np.arange(K)
-    if len(parameters) == 1:
-        labels = [_fmt(v) for v in summary[parameters[0]]]
-        xlabel = parameters[0]
-    elif parameters:
-        labels = [", ".join(_fmt(summary[p].iloc[i]) for p in parameters) for i in range(K)]
-        xlabel = ", ".join(parameters)
+    if layout:
+        groups, series = layout
+        *outer, last = parameters
+        x_of = np.array([groups.index(tuple(summary[p].iloc[i] for p in outer)) for i in range(K)], dtype=float)
+        s_of = np.array([series.index(v) for v in summary[last]])
+        span = min(0.7, 0.18 * len(series))
+        x_of = x_of + (s_of - (len(series) - 1) / 2) * (span / max(1, len(series) - 1))
+        x = np.arange(len(groups))
+        labels = [", ".join(_fmt(v) for v in g) for g in groups]
+        xlabel = ", ".join(outer)
     else:
-        labels, xlabel = ["base"], ""
+        x = x_of = np.arange(K)
+        s_of = np.zeros(K, dtype=int)
+        series = [None]
+        if len(parameters) == 1:
+            labels = [_fmt(v) for v in summary[parameters[0]]]
+            xlabel = parameters[0]
+        elif parameters:
+            labels = [", ".join(_fmt(summary[p].iloc[i]) for p in parameters) for i in range(K)]
+            xlabel = ", ".join(parameters)
+        else:
+            labels, xlabel = ["base"], ""
     for i, m in enumerate(metrics):
         ax = axes[i // ncols][i % ncols]
         mean = summary[f"{m}_mean"].to_numpy(dtype=float)
         lo = mean - summary[f"{m}_ci_low"].to_numpy(dtype=float)
         hi = summary[f"{m}_ci_high"].to_numpy(dtype=float) - mean
-        ax.errorbar(x, mean, yerr=np.vstack([np.nan_to_num(lo), np.nan_to_num(hi)]), fmt="o", capsize=3, ms=4)
+        for j, value in enumerate(series):
+            sel = s_of == j
+            label = _fmt(value) if value is not None else None
+            ax.errorbar(x_of[sel], mean[sel], yerr=np.vstack([np.nan_to_num(lo[sel]), np.nan_to_num(hi[sel])]),
+                        fmt="o", capsize=3, ms=4, label=label)
         info = METRICS.get(m)
         ax.set_title(m)
         ax.set_ylabel(info.unit if info else "")
         ax.grid(alpha=0.3)
-        if K <= 40:
-            slanted = K > 4 or len(parameters) > 1
+        if len(x) <= 40:
+            slanted = len(x) > 4 or len(parameters) > (2 if layout else 1)
             ax.set_xticks(x, labels, rotation=45 if slanted else 0, ha="right" if slanted else "center",
-                          fontsize=7 if K > 12 else 8)
+                          fontsize=7 if len(x) > 12 else 8)
         else:
             ax.set_xlabel("combination")
-        if xlabel and K <= 40:
+        if xlabel and len(x) <= 40:
             ax.set_xlabel(xlabel, fontsize=8)
+        if layout and i == 0:
+            ax.legend(fontsize=7, title=parameters[-1], title_fontsize=7, loc="best")
     for j in range(n, nrows * ncols):
         axes[j // ncols][j % ncols].set_visible(False)
     fig.suptitle("sweep summary: mean ± 95 % CI per combination", fontsize=10)
@@ -909,7 +1041,10 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
         raise SweepError("resume needs an output directory (out)")
 
     import pyarrow as pa
-    from tqdm.auto import tqdm
+
+    with warnings.catch_warnings():  # tqdm.auto warns in Jupyter without ipywidgets, then falls back to text
+        warnings.simplefilter("ignore")
+        from tqdm.auto import tqdm
 
     schema = _arrow_schema(sweep)
     runs = sweep.runs()
@@ -973,7 +1108,9 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
         summary = summarize(df, sweep.parameters, sweep.metrics)
         _write_atomic(out_dir / "summary.csv", lambda p: summary.to_csv(p, index=False))
         fig = plot_summary(summary, sweep.parameters, sweep.metrics)
-        _write_atomic(out_dir / "summary.png", lambda p: fig.savefig(p, dpi=110, format="png"))
+        from .viz import save_png  # a 256-colour palette PNG: the same picture at about a third of the size
+
+        _write_atomic(out_dir / "summary.png", lambda p: save_png(fig, p, dpi=110))
     df.attrs["ran"] = sorted(ran)
     df.attrs["failed"] = [int(i) for i in df.loc[df["status"] != "ok", "run_id"]]
     df.attrs["out"] = str(out_dir) if out_dir is not None else None

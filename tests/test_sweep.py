@@ -236,6 +236,128 @@ def test_sweep_error_is_a_config_error_and_nothing_runs(tmp_path, monkeypatch):
     assert calls == [] and not (tmp_path / "out").exists()
 
 
+# --------------------------------------------------------------------------- named variants (linked keys)
+
+VARIANTS_TOML = """\
+replicates = 2
+duration = 1.0
+seed = 3
+
+[base.copters]
+n = 2
+
+[variants.motion]
+still = { "behaviour.kind" = "hover" }
+slow = { "behaviour.kind" = "random_walk", "behaviour.speed" = 0.1, "behaviour.redraw_steps" = 5 }
+fast = { behaviour.kind = "random_walk", behaviour.speed = 0.6 }
+
+[grid]
+"copters.n" = [2, 3]
+"""
+
+
+def test_variants_are_factors_of_linked_keys_crossed_with_the_grid(tmp_path):
+    sw = Sweep.from_toml(VARIANTS_TOML)
+    assert sw.parameters == ("motion", "copters.n") and sw.design == "grid" and sw.n_combinations == 6
+    assert [c["motion"] for c in sw.combinations] == ["still", "still", "slow", "slow", "fast", "fast"]
+    assert [c["copters.n"] for c in sw.combinations] == [2, 3] * 3
+    assert sw.variants["motion"] == {"still": {"behaviour.kind": "hover"},
+                                     "slow": {"behaviour.kind": "random_walk", "behaviour.speed": 0.1,
+                                              "behaviour.redraw_steps": 5},
+                                     "fast": {"behaviour.kind": "random_walk", "behaviour.speed": 0.6}}
+    b = sw.configs
+    assert (b[2].behaviour.kind, b[2].behaviour.speed, b[2].behaviour.redraw_steps, b[2].copters.n) == \
+        ("random_walk", 0.1, 5, 2)
+    # a key a level leaves out keeps its base value
+    assert (b[5].behaviour.speed, b[5].behaviour.redraw_steps, b[5].copters.n) == (0.6, 20, 3)
+    assert b[0].behaviour.speed == sw.base.behaviour.speed
+    # the Python API takes the same mapping
+    api = Sweep(sw.base, {"copters.n": [2, 3]}, replicates=2, seed=3, variants=sw.variants)
+    assert api.combinations == sw.combinations and api.configs == sw.configs
+    assert api.fingerprint() == sw.fingerprint()
+    # a renamed level is another sweep (its name is in the results); same configs without variants are not
+    renamed = Sweep.from_toml(VARIANTS_TOML.replace("still =", "hovering ="))
+    assert renamed.configs == sw.configs and renamed.fingerprint() != sw.fingerprint()
+    # variants alone (no [grid]) are a design too
+    alone = Sweep.from_toml(VARIANTS_TOML.split("[grid]")[0])
+    assert alone.parameters == ("motion",) and alone.design == "grid" and alone.n_combinations == 3
+
+    out = tmp_path / "out"
+    df = run_sweep(sw, out, executor="serial", progress=False)
+    assert list(df.columns[:4]) == ["run_id", "combination", "motion", "copters.n"]
+    assert list(df["motion"]) == ["still"] * 4 + ["slow"] * 4 + ["fast"] * 4
+    row = df.iloc[9]
+    want = run_episode(sw.configs[int(row["combination"])], int(row["seed"]))
+    assert all(row[name] == value for name, value in want.items())
+    # hovering copters stay put; walking ones cover more of the arena
+    assert df.loc[df["motion"] == "still", "coverage"].mean() < df.loc[df["motion"] == "fast", "coverage"].mean()
+    summary = pd.read_csv(out / "summary.csv")
+    assert list(summary["motion"]) == ["still", "still", "slow", "slow", "fast", "fast"]
+    import json
+
+    info = json.loads((out / "sweep.json").read_text())
+    assert info["parameters"] == ["motion", "copters.n"] and info["variants"]["motion"]["still"] == {
+        "behaviour.kind": "hover"}
+    # a random design is crossed with the variants as well
+    rnd = Sweep.from_toml(VARIANTS_TOML.split("[grid]")[0] + '[random]\nn_samples = 2\n"copters.n" = {low = 2, high = 4}\n')
+    assert rnd.design == "random" and rnd.n_combinations == 6 and rnd.parameters == ("motion", "copters.n")
+
+
+def test_variant_levels_are_checked_as_a_whole():
+    text = """replicates = 1\nduration = 1.0\n[variants.curtain]
+short = { "walls.plate_length" = 1.5, "walls.hinge_height" = 2.0 }
+long = { "walls.plate_length" = 0.5 }
+"""
+    sw = Sweep.from_toml(text)  # plate_length = 1.5 alone would reach below the floor; with the hinge at 2 m it does not
+    assert (sw.configs[0].walls.plate_length, sw.configs[0].walls.hinge_height) == (1.5, 2.0)
+    with pytest.raises(SweepError, match=r"\[variants.curtain\] short: walls.plate_length = 1.5: expected <= "
+                                         r"walls.hinge_height"):
+        Sweep.from_toml(text.replace(', "walls.hinge_height" = 2.0', ""))
+    with pytest.raises(SweepError, match=r"variants = 3: expected tables \[variants.<factor>\]"):
+        Sweep.from_toml("variants = 3\n")
+
+
+@pytest.mark.parametrize("edit, message", [
+    (('"behaviour.kind" = "hover" }', '"behaviour.knd" = "hover" }'),
+     r"\[variants.motion.still\] unknown key behaviour.knd \(did you mean behaviour.kind\?\)"),
+    (('still = { "behaviour.kind" = "hover" }', 'still = "hover"'),
+     r"\[variants.motion\] still = 'hover': expected a table of dotted config keys"),
+    (("behaviour.speed = 0.6", "behaviour.speed = -0.6"), r"\[variants.motion\] fast: behaviour.speed = -0.6"),
+    (("behaviour.speed = 0.6", 'behaviour.speed = 0.1, "behaviour.redraw_steps" = 5'),
+     r"levels 'slow' and 'fast' give the same configuration"),
+    (('still = { "behaviour.kind" = "hover" }', 'still = { "behaviour.kind" = "hover", "copters.n" = 4 }'),
+     r"\[variants.motion\] still sets copters.n, which \[grid\] also sets"),
+    (("[grid]", '[variants.more]\nbig = { "behaviour.speed" = 0.9 }\n[grid]'),
+     r"\[variants.more\] big sets behaviour.speed, which \[variants.motion\] also sets"),
+    (("[variants.motion]", "[variants.seed]"), r"factor name 'seed' clashes with a results column"),
+    (("[variants.motion]", "[variants.coverage]"), r"factor name 'coverage' clashes with a results column"),
+    (("[variants.motion]", '[variants."copters.n"]'), r"without dots"),
+    (("[variants.motion]", '[variants.x]\n[variants.motion]'), r"\[variants.x\] is empty"),
+    (('still = { "behaviour.kind" = "hover" }', 'still = { "simulation.seed" = 4 }'),
+     r"simulation.seed cannot be swept"),
+])
+def test_bad_variants_fail_with_a_named_error(edit, message):
+    text = VARIANTS_TOML.replace(*edit)
+    assert text != VARIANTS_TOML
+    with pytest.raises(SweepError, match=message):
+        Sweep.from_toml(text)
+
+
+def test_summary_plot_groups_a_factorial_design_by_its_last_parameter():
+    sw = Sweep.from_toml(VARIANTS_TOML)
+    summary = pd.DataFrame([{**c, "combination": k, "cohesion_mean": 1.0 + k, "cohesion_ci_low": 0.5 + k,
+                             "cohesion_ci_high": 1.5 + k} for k, c in enumerate(sw.combinations)])
+    groups, series = sweep_mod._factorial_layout(summary, sw.parameters)
+    assert groups == [("still",), ("slow",), ("fast",)] and series == [2, 3]
+    fig = sweep_mod.plot_summary(summary, sw.parameters, ["cohesion"])
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["still", "slow", "fast"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["2", "3"]
+    # not a full factorial (or one parameter): one point per combination along x
+    assert sweep_mod._factorial_layout(summary.iloc[:5], sw.parameters) is None
+    assert sweep_mod._factorial_layout(summary, ["motion"]) is None
+
+
 # --------------------------------------------------------------------------- executors
 
 def test_serial_results_and_outputs(reference):
