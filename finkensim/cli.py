@@ -200,7 +200,7 @@ def _add_sweep(sub) -> None:
                     "DIR/parts/run-XXXXX.parquet (one per finished run), DIR/results.parquet, DIR/summary.csv "
                     "(mean and 95%% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
     )
-    p.add_argument("sweep", help="sweep TOML file ([base], [grid] or [random], replicates, duration, metrics, seed)")
+    p.add_argument("sweep", help="sweep TOML file ([base], [grid] or [random], [variants.NAME], replicates, duration, metrics, seed)")
     p.add_argument("--out", default="out/sweep", metavar="DIR", help="output directory (default: %(default)s)")
     p.add_argument("--executor", default=None, choices=("serial", "process", "dask"),
                    help="process: local process pool (default); dask: Dask cluster (--scheduler, else a local "
