@@ -8,14 +8,15 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from numba import njit
 from scipy import stats
 
 from finkensim.arena import Arena
 from finkensim.config import Config
 from finkensim.kernels.rng import STREAM_SONAR_SCHEDULE, uniforms_array
 from finkensim.sensors.ultrasonic import (
-    HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, down_readings, fire_slots, ideal_ultrasonic, rayleigh_std,
-    ultrasonic_from_trajectory, ultrasonic_readings,
+    HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, cast_ray, cast_ray_culled, down_readings, fire_slots, ideal_ultrasonic,
+    plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
 )
 from finkensim.world import World
 from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
@@ -379,3 +380,161 @@ def test_down_sonar():
     _, _, sp = setup(n=3)
     d = down_readings(np.zeros((500, 3, 2)), sp, 0, np.arange(500), 0)
     assert np.all(d <= 0.6 + rayleigh_std(0.05)) and d.mean() < 0.6  # default runs short
+
+
+# ------------------------------------------------------------------ culled raycast (fast path) vs full search
+
+
+@njit(cache=True)
+def _culled_vs_full(ox, oy, dx, dy, pos_b, radius, pa, pb, width, length):
+    """Per ray: (t culled, kind culled, t full, kind full), plus whether the culling layout check passed."""
+    bands = plate_bands(pa, pb, width, length)
+    out = np.empty((ox.shape[0], 4))
+    for i in range(ox.shape[0]):
+        t1, k1 = cast_ray_culled(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, bands)
+        t2, k2 = cast_ray(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length)
+        out[i, 0] = t1
+        out[i, 1] = k1
+        out[i, 2] = t2
+        out[i, 3] = k2
+    return out, bands[0]
+
+
+_SPECIAL_THETAS = [0.0, -0.0, 0.5, -0.5, 0.5 * math.pi, -0.5 * math.pi, 1e-300, 0.3]
+
+
+@st.composite
+def ray_scenes(draw):
+    """Arena (n_segments, size, plate width, lever), plate angles with repeated / extreme values, and rays
+    from anywhere (inside, on and outside the rectangle, near walls and corners) aimed at random, along the
+    axes, or at plate ends and pitch borders (± a few ulps / a small offset)."""
+    n_seg = draw(st.sampled_from([1, 2, 3, 16, 40]))
+    W = draw(st.sampled_from([3.0, 0.5, 7.3]))
+    L = draw(st.sampled_from([4.0, 0.5, 11.1]))
+    frac = draw(st.sampled_from([0.9, 1.0, 0.3]))
+    hinge = draw(st.sampled_from([1.0, 2.5, 0.61]))
+    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n_seg,
+                            "walls.plate_width_fraction": frac, "walls.hinge_height": hinge,
+                            "walls.plate_length": min(1.0, hinge)})
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    S = arena.n_plates
+    th = np.array(draw(st.lists(st.one_of(st.floats(-1.6, 1.6), st.sampled_from(_SPECIAL_THETAS)),
+                                min_size=S, max_size=S)))
+    pa, pb = arena.plate_surfaces(th[None])
+    pa, pb = np.ascontiguousarray(pa[0]), np.ascontiguousarray(pb[0])
+    R = 12
+    ox, oy, dx, dy = np.empty(R), np.empty(R), np.empty(R), np.empty(R)
+    for i in range(R):
+        where = draw(st.sampled_from(["inside", "near_wall", "near_corner", "anywhere"]))
+        if where == "inside":
+            o = (draw(st.floats(0.0, W)), draw(st.floats(0.0, L)))
+        elif where == "near_wall":
+            s = draw(st.integers(0, S - 1))
+            a = pa[s] + draw(st.floats(0.0, 1.0)) * (pb[s] - pa[s])
+            o = tuple(a + arena.normal[s] * draw(st.sampled_from([0.0, 1e-12, -1e-12, 0.01, 0.2])))
+        elif where == "near_corner":
+            c = draw(st.sampled_from([(0.0, 0.0), (W, 0.0), (W, L), (0.0, L)]))
+            o = (c[0] + draw(st.floats(-0.05, 0.05)) + (0.3 if c[0] == 0 else -0.3) * draw(st.floats(0.0, 1.0)),
+                 c[1] + draw(st.floats(-0.05, 0.05)) + (0.3 if c[1] == 0 else -0.3) * draw(st.floats(0.0, 1.0)))
+        else:
+            o = (draw(st.floats(-1.0, W + 1.0)), draw(st.floats(-1.0, L + 1.0)))
+        aim = draw(st.sampled_from(["random", "axis", "plate_end", "pitch_border", "corner"]))
+        if aim == "random":
+            a = draw(st.floats(-math.pi, math.pi))
+            d = (math.cos(a), math.sin(a))
+        elif aim == "axis":
+            d = draw(st.sampled_from([(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0), (-0.0, 1.0)]))
+        else:
+            if aim == "plate_end":
+                s = draw(st.integers(0, S - 1))
+                p = (pa[s] if draw(st.booleans()) else pb[s]).copy()
+            elif aim == "pitch_border":
+                s = draw(st.integers(0, S - 1))
+                p = arena.seg_a[s] + arena.normal[s] * arena.displacement(th[s])
+            else:
+                p = np.array(draw(st.sampled_from([(0.0, 0.0), (W, 0.0), (W, L), (0.0, L)])))
+            p = p + np.array([draw(st.sampled_from([0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1e-4])),
+                              draw(st.sampled_from([0.0, 1e-15, -1e-15, 1e-9, -1e-9, 1e-4]))])
+            v = p - np.array(o)
+            nv = math.hypot(v[0], v[1])
+            d = (v[0] / nv, v[1] / nv) if nv > 0.0 else (1.0, 0.0)
+        ox[i], oy[i] = o
+        dx[i], dy[i] = d
+    pos = np.stack([np.array(draw(st.lists(st.floats(0.0, W), min_size=3, max_size=3))),
+                    np.array(draw(st.lists(st.floats(0.0, L), min_size=3, max_size=3)))], -1)
+    return arena, pa, pb, pos, ox, oy, dx, dy
+
+
+@settings(derandomize=True, deadline=None, max_examples=400,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scene=ray_scenes())
+def test_culled_raycast_equals_full_search_bit_for_bit(scene):
+    """The fast path tests only the plates in the bands the ray crosses before the net: same distance bits and
+    kind as testing every plate, for displaced plates (both signs, at ±90°), rays at plate ends, pitch borders
+    and corners, from inside, on and outside the rectangle."""
+    arena, pa, pb, pos, ox, oy, dx, dy = scene
+    out, ok = _culled_vs_full(ox, oy, dx, dy, pos, 0.15, pa, pb, arena.width, arena.length)
+    assert ok  # the Arena layout always qualifies for culling
+    np.testing.assert_array_equal(out[:, 0].view(np.int64), out[:, 2].view(np.int64))
+    np.testing.assert_array_equal(out[:, 1], out[:, 3])
+
+
+def test_culled_raycast_many_random_rays_and_border_rays():
+    """Bulk check: 200 000 rays against bent plates (default arena), random and aimed at every plate end."""
+    cfg = Config()
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        th = rng.uniform(-0.8, 1.4, arena.n_plates) * (rng.random(arena.n_plates) < 0.8)
+        pa, pb = (np.ascontiguousarray(x[0]) for x in arena.plate_surfaces(th[None]))
+        n = 10_000
+        ox, oy = rng.uniform(0, 3, n), rng.uniform(0, 4, n)
+        a = rng.uniform(-np.pi, np.pi, n)
+        dx, dy = np.cos(a), np.sin(a)
+        ends = np.concatenate([pa, pb])[rng.integers(0, 2 * arena.n_plates, n)] + rng.normal(0, 1e-6, (n, 2))
+        v = ends - np.stack([ox, oy], -1)
+        v /= np.hypot(v[:, 0], v[:, 1])[:, None]
+        pos = np.stack([rng.uniform(0, 3, 4), rng.uniform(0, 4, 4)], -1)
+        for ddx, ddy in ((dx, dy), (v[:, 0].copy(), v[:, 1].copy())):
+            out, ok = _culled_vs_full(ox, oy, ddx, ddy, pos, 0.15, pa, pb, 3.0, 4.0)
+            assert ok
+            np.testing.assert_array_equal(out[:, 0].view(np.int64), out[:, 2].view(np.int64))
+            np.testing.assert_array_equal(out[:, 1], out[:, 3])
+
+
+def test_culled_raycast_falls_back_when_layout_differs():
+    """Plates not in the Arena layout (shuffled) or NaN: no culling, the full search's answer."""
+    cfg = Config()
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    rng = np.random.default_rng(0)
+    th = rng.uniform(-0.5, 1.0, arena.n_plates)
+    pa, pb = (np.ascontiguousarray(x[0]) for x in arena.plate_surfaces(th[None]))
+    perm = rng.permutation(arena.n_plates)
+    ox, oy = rng.uniform(0, 3, 500), rng.uniform(0, 4, 500)
+    a = rng.uniform(-np.pi, np.pi, 500)
+    pos = np.zeros((0, 2))
+    for qa, qb in ((pa[perm].copy(), pb[perm].copy()), (np.where(np.arange(64)[:, None] == 5, np.nan, pa), pb)):
+        out, ok = _culled_vs_full(ox, oy, np.cos(a), np.sin(a), pos, 0.15, qa, qb, 3.0, 4.0)
+        assert not ok
+        np.testing.assert_array_equal(out[:, 0], out[:, 2])
+        np.testing.assert_array_equal(out[:, 1], out[:, 3])
+
+
+@pytest.mark.parametrize("sonar", [{}, {"beam": "cone", "beam_rays": 5}, {"offset": 0.2}])
+def test_ideal_readings_near_corners_and_bent_borders_match_reference(sonar):
+    """Copters in the corners and along the walls, facing corners and plate borders, every plate bent either
+    way: ideal readings (fast path) equal the NumPy reference."""
+    _, arena, sp = setup(n=8, **sonar)
+    r = 0.15
+    pos = np.array([[r, r], [3 - r, r], [3 - r, 4 - r], [r, 4 - r], [1.5, r + 0.01], [3 - r - 1e-9, 2.0],
+                    [3 * 5 / 16, 4 - r], [r, 4 * 9 / 16]])
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        yaw = rng.choice([np.pi / 4, 3 * np.pi / 4, -np.pi / 4, -3 * np.pi / 4, 0.0, np.pi / 2], 8) \
+            + rng.normal(0, 0.05, 8)
+        th = rng.choice([0.0, 0.4, -0.4, 1.2, np.pi / 2], arena.n_plates)
+        d1, k1, h1 = ideal_ultrasonic(pos[None], yaw[None], th[None], arena, sp)
+        d2, k2, h2 = naive_ideal(pos[None], yaw[None], th[None], arena, sp)
+        np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(k1, k2)
+        np.testing.assert_allclose(h1, h2, rtol=0, atol=1e-12)

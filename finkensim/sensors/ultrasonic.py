@@ -99,7 +99,7 @@ __all__ = [
     "SCHEDULE_SIMULTANEOUS", "SCHEDULE_ROUND_ROBIN", "SCHEDULE_RANDOM_OFFSET",
     "HIT_NONE", "HIT_WALL", "HIT_COPTER", "N_SONARS", "DOWN_SONAR",
     "SonarModel", "WallGeometry", "wall_geometry",
-    "displaced_plates_env", "ideal_env", "fire_slots_env", "ultrasonic_env", "down_env",
+    "displaced_plates_env", "cast_ray", "cast_ray_culled", "plate_bands", "ideal_env", "fire_slots_env", "ultrasonic_env", "down_env",
     "ideal_ultrasonic", "ultrasonic_readings", "down_readings", "fire_slots",
     "ultrasonic_from_state", "ultrasonic_from_trajectory", "rayleigh_std",
 ]
@@ -304,6 +304,169 @@ def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length):
     return best, kind
 
 
+# ---------------------------------------------------------------------------------------------
+# culled raycast: only the plates a ray can reach
+#
+# Walls are straight, axis-aligned rows of plates (:class:`~finkensim.arena.Arena`: south, east, north,
+# west, n = S/4 plates each, plate k of a wall inside pitch cell k along the wall). A displaced plate
+# stays on a line parallel to its wall, so every plate of wall w lies in the band between the smallest
+# and the largest of the wall's plate lines (computed from the displaced plates themselves, per
+# environment: :func:`plate_bands`). A ray from inside the rectangle ends at the net after t_box
+# (:func:`box_exit`), and a plate changes the result only if its computed hit distance is < t_box (a
+# plate at exactly t_box gives the same distance and the same kind as the net). So for each wall the
+# ray's stretch t ∈ [0, t_box] inside that wall's band (widened by eps) gives an interval along the wall
+# (widened by eps), and only the plates whose pitch cells overlap it are tested, in increasing index
+# order like the full search. Equal to :func:`cast_ray` bit for bit:
+#
+# - the plates are axis-aligned (checked: both ends share the wall-normal coordinate exactly), so in
+#   ray_segment den = −fl(dy·ex) (south/north; dx·ey for east/west) has no cancellation: a computed
+#   hit with t ≤ t_box and s ∈ [0, 1] lies within a few ulps · (arena size) of the true intersection,
+#   far inside eps = 1e-9 · (1 + W + L) m;
+# - each plate's own extent is checked to lie within its pitch cell [k·pitch − eps, (k + 1)·pitch + eps]
+#   along its wall, so a hit anywhere in the ray's interval [u0 − eps, u1 + eps] can only be on plates
+#   floor((u0 − 2 eps)/pitch) … floor((u1 + 2 eps)/pitch) (the second eps covers the rounding of the
+#   cell bounds and of the division, both ≪ eps);
+# - the plates left out have computed distance > t_box (or miss), so the minimum, its first occurrence
+#   in index order (ties, signed zeros) and the kind (plates and net are both HIT_WALL) are unchanged;
+#   the copter circles are then tested exactly as in cast_ray.
+# When the layout does not match (any other plate arrangement, NaN) or the sonar is not strictly inside
+# the rectangle or the direction is not finite, :func:`cast_ray_culled` runs the full search.
+
+
+@njit(cache=True, inline="always")
+def _cull_eps(width, length):
+    """Safety margin (m) of the culled raycast: 1e-9 · (1 + W + L), ~10⁶ times the rounding it covers."""
+    return 1e-9 * (1.0 + width + length)
+
+
+@njit(cache=True, inline="always")
+def _wall_band(pa, pb, s0, n, ci, sign, origin, pitch, eps):
+    """(ok, lo, hi) for the n plates s0 … s0 + n − 1 of one wall: ci = index of the wall-normal coordinate
+    (1: south/north, 0: east/west), along-wall coordinate u = origin + sign · (other coordinate)."""
+    ui = 1 - ci
+    lo = np.inf
+    hi = -np.inf
+    for k in range(n):
+        s = s0 + k
+        c = pa[s, ci]
+        ua = origin + sign * pa[s, ui]
+        ub = origin + sign * pb[s, ui]
+        if not (pb[s, ci] == c and abs(c) < np.inf and abs(ua) < np.inf and abs(ub) < np.inf):
+            return False, lo, hi
+        u0 = ua if ua < ub else ub
+        u1 = ub if ua < ub else ua
+        if not (u0 >= k * pitch - eps and u1 <= (k + 1) * pitch + eps):
+            return False, lo, hi
+        if c < lo:
+            lo = c
+        if c > hi:
+            hi = c
+    return True, lo, hi
+
+
+@njit(cache=True, inline="always")
+def plate_bands(pa, pb, width, length):
+    """Per-environment input of :func:`cast_ray_culled` from the displaced plates pa, pb (S, 2) m.
+
+    Returns (ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w): ok says whether the plates follow the
+    :class:`~finkensim.arena.Arena` layout (then culling is exact); lo/hi are the smallest and largest
+    wall-normal coordinate (y for south/north, x for east/west, m) of each wall's plates.
+    """
+    S = pa.shape[0]
+    n = S // 4
+    ok = n > 0 and 4 * n == S and 0.0 < width < np.inf and 0.0 < length < np.inf
+    lo_s = hi_s = lo_e = hi_e = lo_n = hi_n = lo_w = hi_w = 0.0
+    eps = _cull_eps(width, length)
+    if ok:
+        ok, lo_s, hi_s = _wall_band(pa, pb, 0, n, 1, 1.0, 0.0, width / n, eps)
+    if ok:
+        ok, lo_e, hi_e = _wall_band(pa, pb, n, n, 0, 1.0, 0.0, length / n, eps)
+    if ok:
+        ok, lo_n, hi_n = _wall_band(pa, pb, 2 * n, n, 1, -1.0, width, width / n, eps)
+    if ok:
+        ok, lo_w, hi_w = _wall_band(pa, pb, 3 * n, n, 0, -1.0, length, length / n, eps)
+    return ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w
+
+
+@njit(cache=True, inline="always")
+def _band_plates(ox, oy, dx, dy, pa, pb, s0, n, ci, sign, origin, inv_pitch, lo, hi, t_end, eps, inv_dx, inv_dy,
+                 best):
+    """Nearest hit (min with ``best``) among the plates of one wall the ray can reach for t ∈ [0, t_end]."""
+    if ci == 1:
+        oc, dc, ou, du, inv = oy, dy, ox, dx, inv_dy
+    else:
+        oc, dc, ou, du, inv = ox, dx, oy, dy, inv_dx
+    if inv == 0.0:  # parallel to the wall (or |d| < 1e-200: moves < eps along the normal before t_end)
+        if oc < lo - eps or oc > hi + eps:
+            return best
+        t0 = 0.0
+        t1 = t_end
+    else:
+        ta = (lo - eps - oc) * inv
+        tb = (hi + eps - oc) * inv
+        t0 = max(0.0, min(ta, tb))
+        t1 = min(t_end, max(ta, tb))
+        if not (t0 <= t1):
+            return best
+    ua = origin + sign * (ou + t0 * du)
+    ub = origin + sign * (ou + t1 * du)
+    f0 = math.floor((min(ua, ub) - 2.0 * eps) * inv_pitch)
+    f1 = math.floor((max(ua, ub) + 2.0 * eps) * inv_pitch)
+    if f1 < 0.0 or f0 > n - 1.0:
+        return best
+    k0 = 0 if f0 < 0.0 else int(f0)
+    k1 = n - 1 if f1 > n - 1.0 else int(f1)
+    for s in range(s0 + k0, s0 + k1 + 1):
+        t = ray_segment(ox, oy, dx, dy, pa[s, 0], pa[s, 1], pb[s, 0], pb[s, 1])
+        if t < best:
+            best = t
+    return best
+
+
+@njit(cache=True, inline="always")
+def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands):
+    """:func:`cast_ray` testing only the plates the ray can reach before the net (same result, bit for bit).
+
+    ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step.
+    """
+    ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w = bands
+    if not (ok and 0.0 < ox < width and 0.0 < oy < length and abs(dx) < np.inf and abs(dy) < np.inf
+            and abs(dx) + abs(dy) > 0.5):  # a unit direction (culling margins assume |d| = 1)
+        return cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
+    t_box = box_exit(ox, oy, dx, dy, width, length)
+    if not (t_box < np.inf):
+        return cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
+    n = pa.shape[0] // 4
+    eps = _cull_eps(width, length)
+    t_end = t_box + eps
+    inv_w = n / width
+    inv_l = n / length
+    # the band crossings only select plates (the distances come from ray_segment), so 1/d is fine here;
+    # 0 marks a ray (numerically) parallel to the wall
+    inv_dx = 1.0 / dx if abs(dx) >= 1e-200 else 0.0
+    inv_dy = 1.0 / dy if abs(dy) >= 1e-200 else 0.0
+    best = np.inf
+    best = _band_plates(ox, oy, dx, dy, pa, pb, 0, n, 1, 1.0, 0.0, inv_w, lo_s, hi_s, t_end, eps, inv_dx, inv_dy,
+                        best)
+    best = _band_plates(ox, oy, dx, dy, pa, pb, n, n, 0, 1.0, 0.0, inv_l, lo_e, hi_e, t_end, eps, inv_dx, inv_dy,
+                        best)
+    best = _band_plates(ox, oy, dx, dy, pa, pb, 2 * n, n, 1, -1.0, width, inv_w, lo_n, hi_n, t_end, eps, inv_dx,
+                        inv_dy, best)
+    best = _band_plates(ox, oy, dx, dy, pa, pb, 3 * n, n, 0, -1.0, length, inv_l, lo_w, hi_w, t_end, eps, inv_dx,
+                        inv_dy, best)
+    kind = HIT_WALL  # a plate or the net (t_box is finite)
+    if t_box < best:
+        best = t_box
+    for m in range(pos_b.shape[0]):
+        if m == self_n:
+            continue
+        t = ray_circle(ox, oy, dx, dy, pos_b[m, 0], pos_b[m, 1], radius)
+        if t < best:
+            best = t
+            kind = HIT_COPTER
+    return best, kind
+
+
 @njit(cache=True, inline="always")
 def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
     """Sonar origins and headings of one environment → sonar_buf (N, 4, 4): (x m, y m, cos ψ, sin ψ)."""
@@ -325,9 +488,11 @@ def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hi
     pos_b (N, 2) m, yaw_b (N,) rad, pa/pb (S, 2) m displaced plate surfaces
     (:func:`displaced_plates_env`), width/length m. Writes sonar_buf (N, 4, 4) (see
     :func:`sonar_poses_env`), dist (N, 4) m (max_range when no echo), kind (N, 4) int (HIT_*),
-    hit (N, 4, 2) m (nearest hit point, also beyond range).
+    hit (N, 4, 2) m (nearest hit point, also beyond range). Each ray is cast with :func:`cast_ray_culled`
+    (only the plates it can reach; the same result as :func:`cast_ray` bit for bit).
     """
     sonar_poses_env(pos_b, yaw_b, sp, sonar_buf)
+    bands = plate_bands(pa, pb, width, length)
     R = sp.ray_angles.shape[0]
     for n in range(pos_b.shape[0]):
         for k in range(N_SONARS):
@@ -346,7 +511,7 @@ def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hi
                     a = psi + sp.ray_angles[r]
                     dx = np.cos(a)
                     dy = np.sin(a)
-                t, hk = cast_ray(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length)
+                t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands)
                 if t < best:
                     best = t
                     bkind = hk
