@@ -98,7 +98,8 @@ class Diagnosis:
             f = self.flights[0]
             mid = f.t[0] + 0.5 * (f.t[-1] - f.t[0])
             self._is_heldout = lambda fl, sec: (f.t[0] + sec) >= mid
-            self.train_names, self.heldout_names = [f.name + " (first half)"], [f.name + " (second half)"]
+            # spec: flights are named by file; with one flight both lists name it (its halves)
+            self.train_names, self.heldout_names = [f.name], [f.name]
             return
         if heldout:
             unknown = [h for h in heldout if h not in self.names]

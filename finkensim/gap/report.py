@@ -57,8 +57,12 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
     priv = report.get("_private", {})
     v = report["verdict"]
     lines = ["# Sim-to-real gap report", ""]
-    lines.append(f"Training flights: {', '.join(report['flights']['train'])}  ")
-    lines.append(f"Held-out flights: {', '.join(report['flights']['heldout'])}  ")
+    fl = report["flights"]
+    if fl["train"] == fl["heldout"]:
+        lines.append(f"One flight, {', '.join(fl['train'])}: first half for training, second half held out.  ")
+    else:
+        lines.append(f"Training flights: {', '.join(fl['train'])}  ")
+        lines.append(f"Held-out flights: {', '.join(fl['heldout'])}  ")
     lines.append(f"Sensors compared: {', '.join(priv.get('sensors', []))} "
                  f"({', '.join(f'{k}: {n} readings' for k, n in priv.get('n_readings', {}).items())})")
     lines.append("")
