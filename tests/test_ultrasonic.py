@@ -15,8 +15,8 @@ from finkensim.arena import Arena
 from finkensim.config import Config
 from finkensim.kernels.rng import STREAM_SONAR_SCHEDULE, uniforms_array
 from finkensim.sensors.ultrasonic import (
-    HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, cast_ray, cast_ray_culled, down_readings, fire_slots, ideal_ultrasonic,
-    plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
+    HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, cast_ray, cast_ray_culled, crosstalk_path, down_readings, fire_slots,
+    ideal_ultrasonic, plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
 )
 from finkensim.world import World
 from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
@@ -538,3 +538,102 @@ def test_ideal_readings_near_corners_and_bent_borders_match_reference(sonar):
         np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(k1, k2)
         np.testing.assert_allclose(h1, h2, rtol=0, atol=1e-12)
+
+
+# ------------------------------------------------------------------ cross-talk: squared pre-tests vs plain loop
+
+
+@njit(cache=True)
+def _crosstalk_plain(n, k, sonar_buf, slot, sp):
+    """crosstalk_path as it was before the squared-length pre-tests: a sqrt per emitter, then the comparisons."""
+    rx = sonar_buf[n, k, 0]
+    ry = sonar_buf[n, k, 1]
+    ux = sonar_buf[n, k, 2]
+    uy = sonar_buf[n, k, 3]
+    lim = 2.0 * sp.max_range
+    ch = sp.cos_half_angle
+    best = np.inf
+    for m in range(sonar_buf.shape[0]):
+        if m == n or slot[m] != slot[n]:
+            continue
+        for j in range(4):
+            wx = sonar_buf[m, j, 0] - rx
+            wy = sonar_buf[m, j, 1] - ry
+            L = np.sqrt(wx * wx + wy * wy)
+            if L <= 0.0 or L > lim or L >= best:
+                continue
+            if ux * wx + uy * wy >= ch * L and -(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy) >= ch * L:
+                best = L
+    return best
+
+
+@njit(cache=True)
+def _crosstalk_both(sonar_buf, slot, sp):
+    N = sonar_buf.shape[0]
+    out = np.empty((N, 4, 2))
+    for n in range(N):
+        for k in range(4):
+            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp)
+            out[n, k, 1] = _crosstalk_plain(n, k, sonar_buf, slot, sp)
+    return out
+
+
+@st.composite
+def crosstalk_scenes(draw):
+    """Sonars on a coarse grid (exact alignments, equal lengths, coincident sonars, lengths exactly 2·max_range)
+    or anywhere, headings at multiples of 45° (the default cone edge), aimed at another sonar turned by exactly
+    ± the half angle (± ulps), or random; one or two slots."""
+    N = draw(st.integers(2, 7))
+    half = draw(st.sampled_from([45.0, 30.0, 90.0, 10.0, 89.999]))
+    max_range = draw(st.sampled_from([3.0, 0.5, 0.25, 1.0]))
+    _, _, sp = setup(n=N, cone_half_angle_deg=half, max_range=max_range, min_range=min(0.03, max_range))
+    buf = np.empty((N, 4, 4))
+    for n in range(N):
+        for j in range(4):
+            if draw(st.booleans()):
+                buf[n, j, 0] = 0.25 * draw(st.integers(0, 12))
+                buf[n, j, 1] = 0.25 * draw(st.integers(0, 16))
+            else:
+                buf[n, j, 0] = draw(st.floats(0.0, 3.0))
+                buf[n, j, 1] = draw(st.floats(0.0, 4.0))
+    for n in range(N):
+        for j in range(4):
+            how = draw(st.sampled_from(["grid", "random", "edge"]))
+            if how == "grid":
+                a = math.radians(45.0 * draw(st.integers(-4, 3)))
+            elif how == "random":
+                a = draw(st.floats(-math.pi, math.pi))
+            else:
+                m, i = draw(st.integers(0, N - 1)), draw(st.integers(0, 3))
+                w = buf[m, i, :2] - buf[n, j, :2]
+                a = math.atan2(w[1], w[0]) + draw(st.sampled_from([1.0, -1.0])) * sp.half_angle \
+                    + draw(st.sampled_from([0.0, 1e-16, -1e-16, 1e-12, -1e-12]))
+            buf[n, j, 2], buf[n, j, 3] = math.cos(a), math.sin(a)
+    slot = np.array(draw(st.lists(st.integers(0, draw(st.integers(0, 1))), min_size=N, max_size=N)), dtype=np.int64)
+    return buf, slot, sp
+
+
+@settings(derandomize=True, deadline=None, max_examples=400,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scene=crosstalk_scenes())
+def test_crosstalk_squared_pretests_bit_identical(scene):
+    buf, slot, sp = scene
+    out = _crosstalk_both(buf, slot, sp)
+    np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
+
+
+def test_crosstalk_pretests_bulk_random():
+    rng = np.random.default_rng(11)
+    _, _, sp = setup(n=10)
+    hits = 0
+    for _ in range(300):
+        buf = np.empty((10, 4, 4))
+        buf[..., 0] = rng.uniform(0, 3, (10, 4))
+        buf[..., 1] = rng.uniform(0, 4, (10, 4))
+        a = rng.uniform(-np.pi, np.pi, (10, 4))
+        buf[..., 2], buf[..., 3] = np.cos(a), np.sin(a)
+        slot = rng.integers(0, 2, 10)
+        out = _crosstalk_both(buf, slot, sp)
+        np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
+        hits += int(np.isfinite(out[..., 0]).sum())
+    assert hits > 1000  # many emitters actually heard

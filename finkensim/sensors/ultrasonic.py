@@ -558,17 +558,46 @@ def crosstalk_path(n, k, sonar_buf, slot, sp):
     lim = 2.0 * sp.max_range
     ch = sp.cos_half_angle
     best = np.inf
+    # Squared-length pre-tests, each only rejecting emitters the exact test below rejects too, so the
+    # result is that of the plain loop (L = sqrt(wx² + wy²) per emitter, then the four comparisons) bit
+    # for bit, with the sqrt left for emitters that pass: fl∘sqrt is monotonic, so L² > q with
+    # fl(sqrt(q)) > x implies L > x, and q = x²·(1 + 1e-12) is such a bound for x > 0 (the margin is
+    # ~10³ times the rounding of the squares; used for x > 1e-100, so x² does not underflow). With
+    # cos(half angle) > 0 a negative dot product d fails its cone test, and for d ≥ 0, d² < ch²·L²·(1 − 1e-12)
+    # implies d < fl(ch·fl(sqrt(L²))) (used for ch > 1e-50 and 1e-200 < L² < 1e200: no underflow or
+    # overflow; a d² that underflows is < 1e-308 while ch·L > 1e-150).
+    if lim > 1e-100:
+        lim2 = lim * lim * (1.0 + 1e-12)
+    elif lim <= 0.0:
+        lim2 = -1.0  # every L > lim (and L2 = NaN fails every test anyway)
+    else:
+        lim2 = np.inf  # tiny or NaN: no pre-test
+    best2 = np.inf
+    ch2 = ch * ch * (1.0 - 1e-12)
+    square_cone = ch > 1e-50
     for m in range(sonar_buf.shape[0]):
         if m == n or slot[m] != slot[n]:
             continue
         for j in range(N_SONARS):
             wx = sonar_buf[m, j, 0] - rx
             wy = sonar_buf[m, j, 1] - ry
-            L = np.sqrt(wx * wx + wy * wy)
+            L2 = wx * wx + wy * wy
+            d_rx = ux * wx + uy * wy
+            d_em = -(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy)
+            # evaluated without short-circuits (bitwise | and &): one well-predicted branch per emitter
+            skip = (L2 > lim2) | (L2 > best2)  # L > lim or L > best
+            if square_cone:
+                c2 = ch2 * L2
+                outside = (d_rx < 0.0) | (d_em < 0.0) | (d_rx * d_rx < c2) | (d_em * d_em < c2)  # d < ch·L
+                skip = skip | ((L2 > 1e-200) & (L2 < 1e200) & outside)
+            if skip:
+                continue
+            L = np.sqrt(L2)
             if L <= 0.0 or L > lim or L >= best:
                 continue
-            if ux * wx + uy * wy >= ch * L and -(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy) >= ch * L:
+            if d_rx >= ch * L and d_em >= ch * L:
                 best = L
+                best2 = L * L * (1.0 + 1e-12) if L > 1e-100 else np.inf
     return best
 
 
