@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from finkensim.arena import walls_step_env
-from finkensim.kernels.geometry import nearest_body_distance_env
+from finkensim.kernels.geometry import nearest_body_distance_within_env
 from finkensim.kernels.rng import STREAM_RANGING, counter_key
 from finkensim.sensors.imu import imu_env
 from finkensim.sensors.ranging import MODE_SEED, _fast_reading, _seed_reading
@@ -42,11 +42,11 @@ def t_world(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_col, 
 
 
 @njit(cache=True)
-def t_nearest(pos, seg_a, seg_b, radius, reps):
+def t_nearest(pos, seg_a, seg_b, radius, cutoff, reps):
     out = np.empty(seg_a.shape[0])
     for _ in range(reps):
         for b in range(pos.shape[0]):
-            nearest_body_distance_env(seg_a, seg_b, pos[b], radius, out)
+            nearest_body_distance_within_env(seg_a, seg_b, pos[b], radius, cutoff, out)
 
 
 @njit(cache=True)
@@ -162,16 +162,17 @@ def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dic
     a = world.arena
     s = ws.copy()
     dist = np.empty((b, a.seg_a.shape[0]))
+    cutoff = max(world.hinge_params.threshold, a.lever)  # as world.step_env
     for k in range(b):
-        nearest_body_distance_env(a.seg_a, a.seg_b, s.pos[k], world.copter_params.radius, dist[k])
+        nearest_body_distance_within_env(a.seg_a, a.seg_b, s.pos[k], world.copter_params.radius, cutoff, dist[k])
     geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp, 1)
     rows = {
         "world step (move, contacts, plate distances, hinges)": _best(
             t_world, (s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
                       s.wall_contacts, s.collisions, world.copter_params, world.hinge_params, a.seg_a, a.seg_b, a.lever,
                       world.dt), reps, b),
-        "  of which plate distances (point–segment, S×N)": _best(
-            t_nearest, (ws.pos, a.seg_a, a.seg_b, world.copter_params.radius), reps, b),
+        "  of which plate distances (segments near each copter)": _best(
+            t_nearest, (ws.pos, a.seg_a, a.seg_b, world.copter_params.radius, cutoff), reps, b),
         "  of which hinge dynamics (S plates × substeps)": _best(
             t_hinges, (ws.theta, ws.omega, ws.integ, dist, world.hinge_params, a.lever, world.dt), reps, b),
         "sonar: displaced plates + raycast + error + cross-talk": _best(

@@ -25,7 +25,7 @@ from .arena import Arena, HingeParams, walls_step_env
 from .behaviours.random_walk import RandomWalkParams, random_walk_env
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
-from .kernels.geometry import nearest_body_distance_env
+from .kernels.geometry import nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
 
 
@@ -103,12 +103,17 @@ class Trajectory:
 @njit(cache=True, inline="always")
 def step_env(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
              collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt, dist_buf, gap_buf):
-    """Advance one environment by dt in place: copters move, contacts are counted, plates respond."""
+    """Advance one environment by dt in place: copters move, contacts are counted, plates respond.
+
+    The plates need the nearest-body distance only below max(threshold, lever): farther, a plate is
+    inactive and its contact cap is 90° whatever the distance, so dist_buf holds the exact distances
+    below that and inf above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
+    """
     for n in range(pos.shape[0]):
         yaw[n], yaw_rate[n], gap_buf[n] = move_copter(
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
     update_contacts_env(pos, cp.radius, gap_buf, in_wall, wall_contacts, in_collision, collisions)
-    nearest_body_distance_env(seg_a, seg_b, pos, cp.radius, dist_buf)
+    nearest_body_distance_within_env(seg_a, seg_b, pos, cp.radius, max(hp.threshold, lever), dist_buf)
     walls_step_env(theta, omega, integ, dist_buf, hp, lever, dt)
 
 

@@ -157,3 +157,95 @@ def test_segment_copter_distances_arena_case():
     np.testing.assert_allclose(d, [[0.3, 0.3, np.hypot(1.0, 0.45) - 0.15]], rtol=1e-12)
     # a copter overlapping a segment is at distance 0, not negative
     assert g.segment_copter_distances(seg_a, seg_b, np.array([[[0.5, 0.05]]]), 0.15)[0, 0] == 0.0
+
+
+# --------------------------------------------------------------------------- plate distances within a cut-off
+
+
+def _within_expected(seg_a, seg_b, pos, radius, cutoff):
+    brute = g.segment_copter_distances(seg_a, seg_b, pos, radius)
+    return np.where(brute < cutoff, brute, np.inf)
+
+
+def _bits(x):
+    return np.ascontiguousarray(x).view(np.int64)
+
+
+@st.composite
+def arena_scenes(draw):
+    """Arena walls (size, plates per wall) and copters inside, on and outside the walls, on pitch borders
+    and wall lines, in the corners; radius and cut-off from 0 to beyond the arena."""
+    from finkensim.arena import Arena
+    from finkensim.config import Config
+
+    W = draw(st.sampled_from([3.0, 0.5, 7.3, 40.0]))
+    L = draw(st.sampled_from([4.0, 0.5, 11.1]))
+    n = draw(st.sampled_from([1, 2, 3, 16, 50]))
+    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n})
+    arena = Arena.from_config(cfg.arena, cfg.walls)
+    B, N = draw(st.integers(1, 3)), draw(st.integers(0, 12))
+    pos = np.empty((B, N, 2))
+    for b in range(B):
+        for i in range(N):
+            kind = draw(st.sampled_from(["inside", "border", "corner", "outside", "line"]))
+            if kind == "inside":
+                p = (draw(st.floats(0.0, W)), draw(st.floats(0.0, L)))
+            elif kind == "border":  # on a pitch border, a little inside
+                s = draw(st.integers(0, arena.n_plates - 1))
+                q = arena.seg_a[s] + arena.normal[s] * draw(st.sampled_from([0.0, 1e-12, 0.15, 0.5, 0.999, 1.0, 1.15]))
+                p = (q[0] + draw(st.sampled_from([0.0, 1e-15, -1e-15])), q[1])
+            elif kind == "corner":
+                c = draw(st.sampled_from([(0.0, 0.0), (W, 0.0), (W, L), (0.0, L)]))
+                p = (c[0] + draw(st.floats(-1.5, 1.5)), c[1] + draw(st.floats(-1.5, 1.5)))
+            elif kind == "outside":
+                p = (draw(st.floats(-5.0, W + 5.0)), draw(st.floats(-5.0, L + 5.0)))
+            else:  # exactly on a wall line
+                p = draw(st.sampled_from([(draw(st.floats(-1.0, W + 1.0)), 0.0), (W, draw(st.floats(-1.0, L + 1.0))),
+                                          (0.0, draw(st.floats(0.0, L)))]))
+            pos[b, i] = p
+    radius = draw(st.sampled_from([0.15, 0.0, 0.5, 2.0]))
+    cutoff = draw(st.sampled_from([1.0, 0.4, 0.0, 0.25, 3.0, 100.0]))
+    return arena, pos, radius, cutoff
+
+
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(arena_scenes())
+def test_plate_distances_within_cutoff_equal_brute_force(scene):
+    """Exact (bit for bit) where the brute force is below the cut-off, inf elsewhere."""
+    arena, pos, radius, cutoff = scene
+    d = g.segment_copter_distances_within(arena.seg_a, arena.seg_b, pos, radius, cutoff)
+    np.testing.assert_array_equal(_bits(d), _bits(_within_expected(arena.seg_a, arena.seg_b, pos, radius, cutoff)))
+
+
+def test_plate_distances_within_bulk_and_step_cutoff():
+    """Many random swarms in the default arena at the cut-off the world step uses."""
+    from finkensim.world import World
+
+    world = World()
+    a, hp = world.arena, world.hinge_params
+    cutoff = max(hp.threshold, a.lever)
+    rng = np.random.default_rng(2)
+    pos = np.stack([rng.uniform(-0.2, 3.2, (2000, 10)), rng.uniform(-0.2, 4.2, (2000, 10))], -1)
+    d = g.segment_copter_distances_within(a.seg_a, a.seg_b, pos, 0.15, cutoff)
+    expected = _within_expected(a.seg_a, a.seg_b, pos, 0.15, cutoff)
+    np.testing.assert_array_equal(_bits(d), _bits(expected))
+    assert 0.2 < np.isfinite(d).mean() < 0.9  # both cases well represented
+
+
+def test_plate_distances_within_other_layouts_and_non_finite():
+    """Segments not in the Arena layout (shuffled, slanted) run the brute force; NaN / inf copters and a NaN
+    cut-off follow the same contract."""
+    from finkensim.world import World
+
+    a = World().arena
+    rng = np.random.default_rng(4)
+    pos = np.stack([rng.uniform(0, 3, (50, 6)), rng.uniform(0, 4, (50, 6))], -1)
+    pos[3, 2] = np.nan
+    pos[4, 0] = (np.inf, 1.0)
+    perm = rng.permutation(a.n_plates)
+    slanted_b = a.seg_b.copy()
+    slanted_b[5, 1] += 0.01
+    for sa, sb in ((a.seg_a[perm].copy(), a.seg_b[perm].copy()), (a.seg_a, slanted_b), (a.seg_a, a.seg_b)):
+        for cutoff in (1.0, np.nan, np.inf):
+            d = g.segment_copter_distances_within(sa, sb, pos, 0.15, cutoff)
+            np.testing.assert_array_equal(_bits(d), _bits(_within_expected(sa, sb, pos, 0.15, cutoff)))

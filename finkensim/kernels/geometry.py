@@ -102,6 +102,170 @@ def nearest_body_distance_env(seg_a, seg_b, pos_b, radius, out_row):
         out_row[s] = max(0.0, best - radius)
 
 
+# Walls of the Arena layout (finkensim.arena.Arena): S = 4n segments, wall by wall south, east, north, west;
+# (index of the wall-normal coordinate, direction of the along-wall coordinate) per wall.
+_WALL_AXES = ((1, 1.0), (0, 1.0), (1, -1.0), (0, -1.0))
+
+
+@njit(cache=True, inline="always")
+def _wall_line(seg_a, seg_b, s0, n, ci, sign):
+    """(ok, c, u_first, u_last, scale) of the n segments s0 … s0 + n − 1 of one wall.
+
+    ok: every segment lies on the line {coordinate ci = c} (both ends exactly) and the along-wall
+    intervals [lo_k, hi_k] (u = sign · other coordinate) are finite and ordered (lo and hi nondecreasing
+    in k). u_first = lo_0, u_last = hi_{n−1}; scale = |c| + |u_first| + |u_last|.
+    """
+    ui = 1 - ci
+    c = seg_a[s0, ci]
+    lo_prev = -np.inf
+    hi_prev = -np.inf
+    u_first = 0.0
+    u_last = 0.0
+    for k in range(n):
+        s = s0 + k
+        ua = sign * seg_a[s, ui]
+        ub = sign * seg_b[s, ui]
+        if not (seg_a[s, ci] == c and seg_b[s, ci] == c and abs(c) < 1e300 and abs(ua) < 1e300
+                and abs(ub) < 1e300):
+            return False, c, u_first, u_last, 0.0
+        lo = ua if ua < ub else ub
+        hi = ub if ua < ub else ua
+        if not (lo >= lo_prev and hi >= hi_prev):
+            return False, c, u_first, u_last, 0.0
+        if k == 0:
+            u_first = lo
+        lo_prev = lo
+        hi_prev = hi
+    u_last = hi_prev
+    return True, c, u_first, u_last, abs(c) + abs(u_first) + abs(u_last)
+
+
+@njit(cache=True, inline="always")
+def nearest_body_distance_within_env(seg_a, seg_b, pos_b, radius, cutoff, out_row):
+    """:func:`nearest_body_distance_env` where it is below ``cutoff``, ``inf`` elsewhere (m).
+
+    out_row[s] is bit for bit the value of :func:`nearest_body_distance_env` when that value is < cutoff,
+    and ``inf`` when it is ≥ cutoff — all the hinge model needs with cutoff = max(threshold, lever): a
+    plate that far is inactive and uncapped either way. For the Arena layout (see :func:`_wall_line`;
+    anything else runs the brute force) each copter tests only the segments of a wall near its
+    projection on it:
+
+    *Lemma.* For a point P and a straight wall made of consecutive segments on one line, ordered
+    along it, the distance to segment k is sqrt(h² + g_k²), with h the distance from P to the line and
+    g_k the distance along the line from P's projection Q to the interval of segment k (0 if Q lies in
+    it). g_k is 0 on the segment containing Q (or, if Q lies beyond a wall end, smallest on the end
+    segment) and nondecreasing moving away from it in either direction, because the intervals are
+    ordered: for k' < k ≤ k0, hi_k' ≤ hi_k, so g_k' ≥ Q − hi_k' ≥ Q − hi_k (and symmetrically above).
+    Hence the nearest point of the wall to P is on the segment containing the projection or at a wall
+    end, and once Q − hi_k (or lo_k − Q) reaches the cut-off radius every further segment in that
+    direction is at least that far. So per copter and wall: skip the wall if h ≥ cut, else start at the
+    segment k0 near Q and walk outwards until the along-wall gap reaches cut, testing segments with
+    h² + g² < cut² by the exact point_segment_distance. (Any start k0 is correct; the one holding Q
+    tests the fewest.)
+
+    cut = cutoff + radius + eps, eps = 1e-9 · (1 + |P| + wall coordinates): every copter whose exact
+    distance minus radius is < cutoff passes the bounds (their rounding is ~10⁻¹⁵ · scale), so every
+    segment whose exact value is < cutoff gets the same minimum over the same nearest copter (copters
+    left out are farther), in the same copter order; the result is then max(0, best − radius) as in
+    the brute force, and inf where that is ≥ cutoff.
+    """
+    S = seg_a.shape[0]
+    N = pos_b.shape[0]
+    n = S // 4
+    ok = n > 0 and 4 * n == S and 0.0 <= cutoff < 1e300 and 0.0 <= radius < 1e300
+    ok_s = ok_e = ok_n = ok_w = False
+    c_s = c_e = c_n = c_w = f_s = f_e = f_n = f_w = l_s = l_e = l_n = l_w = 0.0
+    sc_s = sc_e = sc_n = sc_w = 0.0
+    if ok:
+        ok_s, c_s, f_s, l_s, sc_s = _wall_line(seg_a, seg_b, 0, n, 1, 1.0)
+        ok_e, c_e, f_e, l_e, sc_e = _wall_line(seg_a, seg_b, n, n, 0, 1.0)
+        ok_n, c_n, f_n, l_n, sc_n = _wall_line(seg_a, seg_b, 2 * n, n, 1, -1.0)
+        ok_w, c_w, f_w, l_w, sc_w = _wall_line(seg_a, seg_b, 3 * n, n, 0, -1.0)
+        ok = ok_s and ok_e and ok_n and ok_w
+    if not ok:
+        nearest_body_distance_env(seg_a, seg_b, pos_b, radius, out_row)
+        for s in range(S):
+            if not (out_row[s] < cutoff):
+                out_row[s] = INF
+        return
+    wall_scale = max(max(sc_s, sc_e), max(sc_n, sc_w))
+    for s in range(S):
+        out_row[s] = INF  # the nearest centre distance found so far
+    for m in range(N):
+        px = pos_b[m, 0]
+        py = pos_b[m, 1]
+        if not (abs(px) < 1e300 and abs(py) < 1e300):
+            # not a finite point: every segment as in the brute force (NaN never wins a comparison)
+            for s in range(S):
+                d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                if d < out_row[s]:
+                    out_row[s] = d
+            continue
+        cut = cutoff + radius + 1e-9 * (1.0 + abs(px) + abs(py) + wall_scale)
+        cut2 = cut * cut
+        for w in range(4):
+            ci, sign = _WALL_AXES[w]
+            if w == 0:
+                c, u_first, u_last = c_s, f_s, l_s
+            elif w == 1:
+                c, u_first, u_last = c_e, f_e, l_e
+            elif w == 2:
+                c, u_first, u_last = c_n, f_n, l_n
+            else:
+                c, u_first, u_last = c_w, f_w, l_w
+            pc = py if ci == 1 else px
+            q = sign * (px if ci == 1 else py)  # along-wall coordinate of the projection
+            h = abs(pc - c)
+            if h >= cut:
+                continue
+            h2 = h * h
+            span = u_last - u_first
+            f = (q - u_first) / span * n if span > 0.0 else 0.0
+            k0 = 0 if not (f > 0.0) else (n - 1 if f >= n - 1.0 else int(f))
+            s0 = w * n
+            ui = 1 - ci
+            for k in range(k0, -1, -1):  # towards the start of the wall
+                s = s0 + k
+                ua = sign * seg_a[s, ui]
+                ub = sign * seg_b[s, ui]
+                lo = ua if ua < ub else ub
+                hi = ub if ua < ub else ua
+                if q - hi >= cut:
+                    break
+                g = max(lo - q, q - hi, 0.0)
+                if h2 + g * g < cut2:
+                    d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                    if d < out_row[s]:
+                        out_row[s] = d
+            for k in range(k0 + 1, n):  # towards the end of the wall
+                s = s0 + k
+                ua = sign * seg_a[s, ui]
+                ub = sign * seg_b[s, ui]
+                lo = ua if ua < ub else ub
+                hi = ub if ua < ub else ua
+                if lo - q >= cut:
+                    break
+                g = max(lo - q, q - hi, 0.0)
+                if h2 + g * g < cut2:
+                    d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                    if d < out_row[s]:
+                        out_row[s] = d
+    for s in range(S):
+        v = max(0.0, out_row[s] - radius)
+        out_row[s] = v if v < cutoff else INF
+
+
+@njit(cache=True, parallel=True)
+def segment_copter_distances_within(seg_a, seg_b, pos, radius, cutoff):
+    """Batched :func:`nearest_body_distance_within_env`: (B, S) m, exact below ``cutoff``, inf elsewhere."""
+    B = pos.shape[0]
+    S = seg_a.shape[0]
+    out = np.empty((B, S))
+    for b in prange(B):
+        nearest_body_distance_within_env(seg_a, seg_b, pos[b], radius, cutoff, out[b])
+    return out
+
+
 @njit(cache=True, parallel=True)
 def segment_copter_distances(seg_a, seg_b, pos, radius):
     """Distance from each segment to the nearest copter body (point-to-segment minus radius, ≥ 0).
