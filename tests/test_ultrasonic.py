@@ -465,7 +465,7 @@ def ray_scenes(draw):
     return arena, pa, pb, pos, ox, oy, dx, dy
 
 
-@settings(derandomize=True, deadline=None, max_examples=400,
+@settings(derandomize=True, deadline=None, max_examples=100,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(scene=ray_scenes())
 def test_culled_raycast_equals_full_search_bit_for_bit(scene):
