@@ -102,10 +102,8 @@ def nearest_body_distance_env(seg_a, seg_b, pos_b, radius, out_row):
         out_row[s] = max(0.0, best - radius)
 
 
-# Walls of the Arena layout (finkensim.arena.Arena): S = 4n segments, wall by wall south, east, north, west;
-# (index of the wall-normal coordinate, direction of the along-wall coordinate) per wall.
-_WALL_AXES = ((1, 1.0), (0, 1.0), (1, -1.0), (0, -1.0))
-
+# the brute force as a called function: the rare fallback of nearest_body_distance_within_env
+_nearest_body_distance_fn = njit(cache=True)(nearest_body_distance_env.py_func)
 
 @njit(cache=True, inline="always")
 def _wall_line(seg_a, seg_b, s0, n, ci, sign):
@@ -140,15 +138,15 @@ def _wall_line(seg_a, seg_b, s0, n, ci, sign):
     return True, c, u_first, u_last, abs(c) + abs(u_first) + abs(u_last)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def nearest_body_distance_within_env(seg_a, seg_b, pos_b, radius, cutoff, out_row):
     """:func:`nearest_body_distance_env` where it is below ``cutoff``, ``inf`` elsewhere (m).
 
     out_row[s] is bit for bit the value of :func:`nearest_body_distance_env` when that value is < cutoff,
     and ``inf`` when it is ≥ cutoff — all the hinge model needs with cutoff = max(threshold, lever): a
     plate that far is inactive and uncapped either way. For the Arena layout (see :func:`_wall_line`;
-    anything else runs the brute force) each copter tests only the segments of a wall near its
-    projection on it:
+    anything else, or a copter position that is not finite, runs the brute force) each copter tests
+    only the segments of a wall near its projection on it:
 
     *Lemma.* For a point P and a straight wall made of consecutive segments on one line, ordered
     along it, the distance to segment k is sqrt(h² + g_k²), with h the distance from P to the line and
@@ -168,51 +166,54 @@ def nearest_body_distance_within_env(seg_a, seg_b, pos_b, radius, cutoff, out_ro
     segment whose exact value is < cutoff gets the same minimum over the same nearest copter (copters
     left out are farther), in the same copter order; the result is then max(0, best − radius) as in
     the brute force, and inf where that is ≥ cutoff.
+
+    Not ``inline="always"``: compiled once and called (inlining it at numba's IR level into every kernel
+    that inlines ``world.step_env`` costs seconds of cold compile time each).
     """
     S = seg_a.shape[0]
     N = pos_b.shape[0]
     n = S // 4
     ok = n > 0 and 4 * n == S and 0.0 <= cutoff < 1e300 and 0.0 <= radius < 1e300
-    ok_s = ok_e = ok_n = ok_w = False
     c_s = c_e = c_n = c_w = f_s = f_e = f_n = f_w = l_s = l_e = l_n = l_w = 0.0
-    sc_s = sc_e = sc_n = sc_w = 0.0
-    if ok:
-        ok_s, c_s, f_s, l_s, sc_s = _wall_line(seg_a, seg_b, 0, n, 1, 1.0)
-        ok_e, c_e, f_e, l_e, sc_e = _wall_line(seg_a, seg_b, n, n, 0, 1.0)
-        ok_n, c_n, f_n, l_n, sc_n = _wall_line(seg_a, seg_b, 2 * n, n, 1, -1.0)
-        ok_w, c_w, f_w, l_w, sc_w = _wall_line(seg_a, seg_b, 3 * n, n, 0, -1.0)
-        ok = ok_s and ok_e and ok_n and ok_w
-    if not ok:
-        nearest_body_distance_env(seg_a, seg_b, pos_b, radius, out_row)
+    wall_scale = 0.0
+    for w in range(4 if ok else 0):  # south, east, north, west (one call site: short compile)
+        ci = 1 if w % 2 == 0 else 0
+        sign = 1.0 if w < 2 else -1.0
+        ok_w, c, u_first, u_last, sc = _wall_line(seg_a, seg_b, w * n, n, ci, sign)
+        ok = ok and ok_w
+        wall_scale = max(wall_scale, sc)
+        if w == 0:
+            c_s, f_s, l_s = c, u_first, u_last
+        elif w == 1:
+            c_e, f_e, l_e = c, u_first, u_last
+        elif w == 2:
+            c_n, f_n, l_n = c, u_first, u_last
+        else:
+            c_w, f_w, l_w = c, u_first, u_last
+    for m in range(N):
+        ok = ok and abs(pos_b[m, 0]) < 1e300 and abs(pos_b[m, 1]) < 1e300
+    if not ok:  # another layout, or a copter that is not a finite point: brute force
+        _nearest_body_distance_fn(seg_a, seg_b, pos_b, radius, out_row)
         for s in range(S):
             if not (out_row[s] < cutoff):
                 out_row[s] = INF
         return
-    wall_scale = max(max(sc_s, sc_e), max(sc_n, sc_w))
     for s in range(S):
         out_row[s] = INF  # the nearest centre distance found so far
     for m in range(N):
         px = pos_b[m, 0]
         py = pos_b[m, 1]
-        if not (abs(px) < 1e300 and abs(py) < 1e300):
-            # not a finite point: every segment as in the brute force (NaN never wins a comparison)
-            for s in range(S):
-                d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
-                if d < out_row[s]:
-                    out_row[s] = d
-            continue
         cut = cutoff + radius + 1e-9 * (1.0 + abs(px) + abs(py) + wall_scale)
         cut2 = cut * cut
         for w in range(4):
-            ci, sign = _WALL_AXES[w]
-            if w == 0:
-                c, u_first, u_last = c_s, f_s, l_s
+            if w == 0:  # south, east, north, west: (wall-normal coordinate, along-wall direction) as _wall_line
+                ci, sign, c, u_first, u_last = 1, 1.0, c_s, f_s, l_s
             elif w == 1:
-                c, u_first, u_last = c_e, f_e, l_e
+                ci, sign, c, u_first, u_last = 0, 1.0, c_e, f_e, l_e
             elif w == 2:
-                c, u_first, u_last = c_n, f_n, l_n
+                ci, sign, c, u_first, u_last = 1, -1.0, c_n, f_n, l_n
             else:
-                c, u_first, u_last = c_w, f_w, l_w
+                ci, sign, c, u_first, u_last = 0, -1.0, c_w, f_w, l_w
             pc = py if ci == 1 else px
             q = sign * (px if ci == 1 else py)  # along-wall coordinate of the projection
             h = abs(pc - c)
@@ -224,32 +225,31 @@ def nearest_body_distance_within_env(seg_a, seg_b, pos_b, radius, cutoff, out_ro
             k0 = 0 if not (f > 0.0) else (n - 1 if f >= n - 1.0 else int(f))
             s0 = w * n
             ui = 1 - ci
-            for k in range(k0, -1, -1):  # towards the start of the wall
+            # walk k0, k0 − 1, …, 0 (towards the start of the wall), then k0 + 1, …, n − 1
+            k = k0
+            step = -1
+            while True:
+                if k < 0:
+                    k = k0 + 1
+                    step = 1
+                if k >= n:
+                    break
                 s = s0 + k
                 ua = sign * seg_a[s, ui]
                 ub = sign * seg_b[s, ui]
                 lo = ua if ua < ub else ub
                 hi = ub if ua < ub else ua
-                if q - hi >= cut:
-                    break
+                if (q - hi if step < 0 else lo - q) >= cut:  # this one and all further this way are too far
+                    if step > 0:
+                        break
+                    k = -1
+                    continue
                 g = max(lo - q, q - hi, 0.0)
                 if h2 + g * g < cut2:
                     d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
                     if d < out_row[s]:
                         out_row[s] = d
-            for k in range(k0 + 1, n):  # towards the end of the wall
-                s = s0 + k
-                ua = sign * seg_a[s, ui]
-                ub = sign * seg_b[s, ui]
-                lo = ua if ua < ub else ub
-                hi = ub if ua < ub else ua
-                if lo - q >= cut:
-                    break
-                g = max(lo - q, q - hi, 0.0)
-                if h2 + g * g < cut2:
-                    d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
-                    if d < out_row[s]:
-                        out_row[s] = d
+                k += step
     for s in range(S):
         v = max(0.0, out_row[s] - radius)
         out_row[s] = v if v < cutoff else INF

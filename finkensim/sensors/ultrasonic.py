@@ -364,7 +364,7 @@ def _wall_band(pa, pb, s0, n, ci, sign, origin, pitch, eps):
     return True, lo, hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def plate_bands(pa, pb, width, length):
     """Per-environment input of :func:`cast_ray_culled` from the displaced plates pa, pb (S, 2) m.
 
@@ -377,14 +377,20 @@ def plate_bands(pa, pb, width, length):
     ok = n > 0 and 4 * n == S and 0.0 < width < np.inf and 0.0 < length < np.inf
     lo_s = hi_s = lo_e = hi_e = lo_n = hi_n = lo_w = hi_w = 0.0
     eps = _cull_eps(width, length)
-    if ok:
-        ok, lo_s, hi_s = _wall_band(pa, pb, 0, n, 1, 1.0, 0.0, width / n, eps)
-    if ok:
-        ok, lo_e, hi_e = _wall_band(pa, pb, n, n, 0, 1.0, 0.0, length / n, eps)
-    if ok:
-        ok, lo_n, hi_n = _wall_band(pa, pb, 2 * n, n, 1, -1.0, width, width / n, eps)
-    if ok:
-        ok, lo_w, hi_w = _wall_band(pa, pb, 3 * n, n, 0, -1.0, length, length / n, eps)
+    for w in range(4 if ok else 0):  # south, east, north, west (one call site: short compile)
+        ci = 1 if w % 2 == 0 else 0
+        sign = 1.0 if w < 2 else -1.0
+        side = width if ci == 1 else length
+        ok_w, lo, hi = _wall_band(pa, pb, w * n, n, ci, sign, 0.0 if w < 2 else side, side / n, eps)
+        ok = ok and ok_w
+        if w == 0:
+            lo_s, hi_s = lo, hi
+        elif w == 1:
+            lo_e, hi_e = lo, hi
+        elif w == 2:
+            lo_n, hi_n = lo, hi
+        else:
+            lo_w, hi_w = lo, hi
     return ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w
 
 
@@ -423,19 +429,25 @@ def _band_plates(ox, oy, dx, dy, pa, pb, s0, n, ci, sign, origin, inv_pitch, lo,
     return best
 
 
+# the full search as a called function: the rare fallback of cast_ray_culled, not inlined there
+_cast_ray_fn = njit(cache=True)(cast_ray.py_func)
+
+
 @njit(cache=True, inline="always")
 def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands):
     """:func:`cast_ray` testing only the plates the ray can reach before the net (same result, bit for bit).
 
     ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step.
+    (Kept small for numba's IR-level inlining — one band test in a loop over the walls, one fallback call
+    site — and :func:`plate_bands` is not inlined: each inlined copy costs seconds of cold compile time.)
     """
     ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w = bands
-    if not (ok and 0.0 < ox < width and 0.0 < oy < length and abs(dx) < np.inf and abs(dy) < np.inf
-            and abs(dx) + abs(dy) > 0.5):  # a unit direction (culling margins assume |d| = 1)
-        return cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
-    t_box = box_exit(ox, oy, dx, dy, width, length)
+    # a unit direction (the culling margins assume |d| = 1) from strictly inside the rectangle
+    fast = (ok and 0.0 < ox < width and 0.0 < oy < length and abs(dx) < np.inf and abs(dy) < np.inf
+            and abs(dx) + abs(dy) > 0.5)
+    t_box = box_exit(ox, oy, dx, dy, width, length) if fast else np.inf
     if not (t_box < np.inf):
-        return cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
+        return _cast_ray_fn(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
     n = pa.shape[0] // 4
     eps = _cull_eps(width, length)
     t_end = t_box + eps
@@ -446,14 +458,17 @@ def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length
     inv_dx = 1.0 / dx if abs(dx) >= 1e-200 else 0.0
     inv_dy = 1.0 / dy if abs(dy) >= 1e-200 else 0.0
     best = np.inf
-    best = _band_plates(ox, oy, dx, dy, pa, pb, 0, n, 1, 1.0, 0.0, inv_w, lo_s, hi_s, t_end, eps, inv_dx, inv_dy,
-                        best)
-    best = _band_plates(ox, oy, dx, dy, pa, pb, n, n, 0, 1.0, 0.0, inv_l, lo_e, hi_e, t_end, eps, inv_dx, inv_dy,
-                        best)
-    best = _band_plates(ox, oy, dx, dy, pa, pb, 2 * n, n, 1, -1.0, width, inv_w, lo_n, hi_n, t_end, eps, inv_dx,
-                        inv_dy, best)
-    best = _band_plates(ox, oy, dx, dy, pa, pb, 3 * n, n, 0, -1.0, length, inv_l, lo_w, hi_w, t_end, eps, inv_dx,
-                        inv_dy, best)
+    for w in range(4):  # south, east, north, west: plates in increasing index order
+        if w == 0:
+            ci, sign, origin, inv_p, lo, hi = 1, 1.0, 0.0, inv_w, lo_s, hi_s
+        elif w == 1:
+            ci, sign, origin, inv_p, lo, hi = 0, 1.0, 0.0, inv_l, lo_e, hi_e
+        elif w == 2:
+            ci, sign, origin, inv_p, lo, hi = 1, -1.0, width, inv_w, lo_n, hi_n
+        else:
+            ci, sign, origin, inv_p, lo, hi = 0, -1.0, length, inv_l, lo_w, hi_w
+        best = _band_plates(ox, oy, dx, dy, pa, pb, w * n, n, ci, sign, origin, inv_p, lo, hi, t_end, eps, inv_dx,
+                            inv_dy, best)
     kind = HIT_WALL  # a plate or the net (t_box is finite)
     if t_box < best:
         best = t_box
