@@ -75,7 +75,7 @@ def _rayleigh_scale(base: ModelParams, v: dict) -> ModelParams:
 
 
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
-    sched = base.xtalk_schedule if base.xtalk_geo_q > 0 else rp.SCHEDULE_ALL
+    sched = base.xtalk_schedule if base.xtalk_geo_q > 0 else 0
     return base.with_(xtalk_geo_q=v["probability"], xtalk_schedule=sched)
 
 

@@ -19,12 +19,13 @@ from numba import njit, prange
 from ..config import Config
 from ..kernels.rng import STREAM_EFFECT, counter_key, normal, uniform
 from ..sensors.ranging import RangingModel
+from ..sensors.sonar_model import SonarModel
 from . import replay as rp
 
 ERR_NONE, ERR_GAUSSIAN, ERR_RAYLEIGH, ERR_SEED = 0, 1, 2, 3
 _ERR = {"none": ERR_NONE, "gaussian": ERR_GAUSSIAN, "rayleigh": ERR_RAYLEIGH, "seed": ERR_SEED}
-_SCHED = {"simultaneous": rp.SCHEDULE_ALL, "round_robin": rp.SCHEDULE_ROUND_ROBIN,
-          "random_offset": rp.SCHEDULE_RANDOM_OFFSET}
+_SCHED = {"simultaneous": 0, "round_robin": 1,
+          "random_offset": 2}
 
 SONAR_NAMES = {0.0: "front", 90.0: "left", 180.0: "back", -90.0: "right"}
 
@@ -55,7 +56,7 @@ class ModelParams:
     sonar_max: float = 3.0
     xtalk_const_p: float = 0.0
     xtalk_geo_q: float = 0.0
-    xtalk_schedule: int = rp.SCHEDULE_ROUND_ROBIN
+    xtalk_schedule: int = 1
     xtalk_slots: int = 4
     xtalk_half_angle: float = math.radians(45.0)
     xtalk_jitter: float = 0.02
@@ -91,7 +92,7 @@ class ModelParams:
             sonar_error=_ERR[s.error], sonar_sigma=s.sigma, sonar_sign=(1.0 if s.error == "seed" else s.rayleigh_sign),
             sonar_min=s.min_range, sonar_max=s.max_range,
             xtalk_const_p=s.crosstalk_probability if s.crosstalk == "constant" else 0.0,
-            xtalk_geo_q=1.0 if geo else 0.0, xtalk_schedule=_SCHED[s.schedule] if geo else rp.SCHEDULE_ALL,
+            xtalk_geo_q=1.0 if geo else 0.0, xtalk_schedule=_SCHED[s.schedule] if geo else 0,
             xtalk_slots=s.n_slots, xtalk_half_angle=math.radians(s.cone_half_angle_deg), xtalk_jitter=s.crosstalk_jitter,
             wall_gain=1.0 if cfg.walls.bending else 0.0,
             beam_half_angle=math.radians(s.cone_half_angle_deg) if s.beam == "cone" else 0.0, beam_rays=s.beam_rays,
@@ -252,10 +253,8 @@ class SonarTable(Table):
             names = names or names_f
             K, N = f.samples.size, f.n_copters
             out = np.empty((K, N, S, 8))
-            cos_cone = math.cos(math.radians(cfg.sonar.cone_half_angle_deg))
-            rp.sonar_features(f.pos, f.yaw, f.theta_unit, f.arena.plate_a, f.arena.plate_b, f.arena.normal,
-                              f.arena.lever, f.arena.width, f.arena.length, f.sonar_yaw, f.sonar_offset, f.radius,
-                              cfg.sonar.max_range, cos_cone, f.samples, f.sigma_xy, f.sigma_yaw, out)
+            rp.sonar_features(f.geometry, f.sonar_model(SonarModel.from_config(cfg)).with_beam(0.0, 1), f.samples, f.sigma_xy,
+                              f.sigma_yaw, out)
             y = f.log.ultrasonic[f.samples].copy()  # (K, N, S)
             # readings whose ideal value flips under the tracking noise (grazing a rim, at the range
             # limit) are left out of every score alike: a small ensemble cannot represent them
@@ -275,10 +274,12 @@ class SonarTable(Table):
         if names is None:
             return None
         cat = lambda v, dt=float: np.concatenate(v).astype(dt)  # noqa: E731
-        return cls(sensor="ultrasonic", y=cat(cols["y"]), flight=cat(cols["flight"], np.int64),
+        t = cls(sensor="ultrasonic", y=cat(cols["y"]), flight=cat(cols["flight"], np.int64),
                    sample=cat(cols["sample"], np.int64), time=cat(cols["time"], np.int64),
                    copter=cat(cols["copter"], np.int64), channel=cat(cols["channel"], np.int64),
                    features={k: cat(v) for k, v in feats.items()}, channel_names=names, seconds=cat(cols["sec"]))
+        t.sonar0 = SonarModel.from_config(cfg)
+        return t
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         """Ideal draws (dist, kind, xtalk), each (len(u), N, S, G), at sample positions u of one flight."""
@@ -293,14 +294,13 @@ class SonarTable(Table):
             return hit
         times = np.maximum(0, fl.samples[u] - p.latency_sonar)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
-        rays = np.linspace(-p.beam_half_angle, p.beam_half_angle, p.beam_rays) if p.beam_half_angle > 0 else np.zeros(1)
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        rp.sonar_draws(fl.pos, fl.yaw, fl.theta_unit, p.wall_gain, fl.arena.plate_a, fl.arena.plate_b,
-                       fl.arena.normal, fl.arena.lever, fl.arena.width, fl.arena.length, fl.sonar_yaw,
-                       fl.sonar_offset, fl.radius, p.sonar_max, rays, math.cos(p.xtalk_half_angle),
-                       p.xtalk_schedule, p.xtalk_slots, times, sx, sy, seed, fl.index, G, dist, kind, xt)
+        sp = fl.sonar_model(self.sonar0)._replace(
+            max_range=p.sonar_max, half_angle=p.xtalk_half_angle, cos_half_angle=math.cos(p.xtalk_half_angle),
+            schedule=p.xtalk_schedule, n_slots=p.xtalk_slots).with_beam(p.beam_half_angle, p.beam_rays)
+        rp.sonar_draws(fl.geometry, sp, p.wall_gain, times, fl.noise(sx, sy, seed), G, dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
@@ -379,7 +379,7 @@ class RangingTable(Table):
             times = np.maximum(0, fl.samples[u] - p.latency_ranging)
             N = fl.n_copters
             out = np.empty((times.size, N, N, G))
-            rp.ranging_draws(fl.pos, fl.yaw, times, sx, seed, fl.index, G, out)
+            rp.ranging_draws(fl.pos, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
             hit = self.cache.put(key, (out,))
         return hit
 
@@ -492,7 +492,7 @@ class ImuTable(Table):
         if hit is None:
             times = np.maximum(h + 1, fl.samples[u] - p.latency_imu)
             out = np.empty((times.size, fl.n_copters, 3, G))
-            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, sx, sy, seed, fl.index, G, out)
+            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, fl.noise(sx, sy, seed), G, out)
             hit = self.cache.put(key, (out,))
         return hit
 

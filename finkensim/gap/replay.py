@@ -16,6 +16,7 @@ plates; times are indices into the log.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -24,12 +25,11 @@ from ..arena import Arena, walls_step_env
 from ..config import Config
 from ..flightlog import FlightLog
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
-from ..kernels.rng import STREAM_POSE_NOISE, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
-from ..sensors.ultrasonic import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray
-
-SCHEDULE_ALL = 0  # every emitter can be heard (simultaneous firing)
-SCHEDULE_ROUND_ROBIN = 1
-SCHEDULE_RANDOM_OFFSET = 2
+from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
+from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
+from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_env, shifted_plates_env,
+                                     sonar_hit, sonar_poses_env)
+from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
 
 
 class GapInputError(ValueError):
@@ -67,6 +67,20 @@ class Flight:
     @property
     def n_copters(self) -> int:
         return self.pos.shape[1]
+
+    @property
+    def geometry(self) -> "ReplayGeometry":
+        """The flight as the sonar kernels see it (logged poses, replayed plate angles, the log's arena)."""
+        return ReplayGeometry(self.pos, self.yaw, self.theta_unit, *wall_geometry(self.arena))
+
+    def sonar_model(self, sp: SonarModel) -> SonarModel:
+        """``sp`` with the geometry this log records: sonar mounting yaws and offset, copter radius."""
+        return sp._replace(mount_yaw=np.ascontiguousarray(self.sonar_yaw, dtype=np.float64),
+                           offset=float(self.sonar_offset), radius=float(self.radius))
+
+    def noise(self, sigma_xy: float, sigma_yaw: float, seed: int) -> "PoseNoise":
+        """The :class:`PoseNoise` of this flight's pose draws."""
+        return PoseNoise(float(sigma_xy), float(sigma_yaw), int(seed), int(self.index))
 
 
 @njit(cache=True)
@@ -126,6 +140,19 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
 
 # --------------------------------------------------------------------------------------- pose draws
 
+class PoseNoise(NamedTuple):
+    """Tracking noise of a flight's logged poses and the keys of its pose draws.
+
+    sigma_xy m, sigma_yaw rad: standard deviations; seed and flight_id key the draws
+    (``counter_key(seed, flight_id, sample, copter, STREAM_POSE_NOISE)``, normals 3m, 3m+1, 3m+2 of draw m).
+    """
+
+    sigma_xy: float
+    sigma_yaw: float
+    seed: int
+    flight_id: int
+
+
 @njit(cache=True, inline="always")
 def _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id):
     """Draw m of copter n's true pose at sample k: logged pose + tracking noise (x, y, yaw)."""
@@ -136,111 +163,122 @@ def _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id):
             yaw[k, n] + sigma_yaw * normal(key, 3 * m + 2))
 
 
+@njit(cache=True, inline="always")
+def draw_poses(pos, yaw, k, m, noise, pos_out, yaw_out):
+    """Draw m of every copter's true pose at sample k → pos_out (N, 2) m, yaw_out (N,) rad."""
+    for n in range(pos.shape[1]):
+        x, y, w = _pose_draw(pos, yaw, k, n, m, noise.sigma_xy, noise.sigma_yaw, noise.seed, noise.flight_id)
+        pos_out[n, 0] = x
+        pos_out[n, 1] = y
+        yaw_out[n] = w
+
+
 # --------------------------------------------------------------------------------------- sonar
 
-@njit(cache=True, parallel=True)
-def sonar_draws(pos, yaw, theta, gain, plate_a, plate_b, normal_, lever, width, length, mount_yaw, offset,
-                radius, max_range, ray_angles, cos_xtalk, schedule, n_slots, times, sigma_xy, sigma_yaw,
-                seed, flight_id, M, out_dist, out_kind, out_xtalk):
-    """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``.
+class ReplayGeometry(NamedTuple):
+    """A logged flight as the sonar kernels see it: pos (T, N, 2) m, yaw (T, N) rad, theta (T, S_p) rad
+    plate angles of the replayed walls, and the walls' fields of
+    :class:`~finkensim.sensors.sonar_model.WallGeometry` (plate_a, plate_b, normal (S_p, 2) m, lever,
+    width, length m). Flat, not nested: numba's parallel loops cannot pass a NamedTuple inside one."""
 
-    pos (T, N, 2), yaw (T, N), theta (T, S_p) plate angles (scaled by ``gain`` in sin θ);
-    mount_yaw (S,) rad; ray_angles (R,) rad around each sonar heading (nearest echo wins).
-    Writes out_dist (K, N, S, M) m (max_range when no echo), out_kind (K, N, S, M) (HIT_*),
-    out_xtalk (K, N, S, M): the shortest emitter→receiver path (m) of another copter's sonar that
-    lies in the receiver's cone (cos ≥ cos_xtalk) and points at it, within 2·max_range, among
-    emitters firing in the receiver's slot (``schedule``); inf if none.
+    pos: np.ndarray
+    yaw: np.ndarray
+    theta: np.ndarray
+    plate_a: np.ndarray
+    plate_b: np.ndarray
+    normal: np.ndarray
+    lever: float
+    width: float
+    length: float
+
+
+_ideal_fn = njit(cache=True)(ideal_env.py_func)
+
+
+@njit(cache=True)
+def _sonar_draw(geo, sp, gain, k, m, noise, pb_, yb, pa, pbb, slots, buf, dist, kind, hit, xt):
+    """One pose draw (m) at sample k: ideal readings into dist/kind (N, S) and cross-talk paths into xt (N, S)."""
+    w = geo
+    draw_poses(geo.pos, geo.yaw, k, m, noise, pb_, yb)
+    shifted_plates_env(geo.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pbb)
+    _ideal_fn(pb_, yb, pa, pbb, w.width, w.length, sp, buf, dist, kind, hit)
+    fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
+    for n in range(pb_.shape[0]):
+        for s in range(sp.mount_yaw.shape[0]):
+            xt[n, s] = crosstalk_path(n, s, buf, slots, sp)
+
+
+@njit(cache=True, parallel=True)
+def sonar_draws(geo, sp, gain, times, noise, M, out_dist, out_kind, out_xtalk):
+    """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``, computed
+    with the simulator's own kernels (:mod:`finkensim.sensors.sonar_kernels`).
+
+    geo: :class:`ReplayGeometry`; sp: the :class:`~finkensim.sensors.sonar_model.SonarModel` (mounting,
+    offset and radius from the log; its beam rays, range, cone and schedule); gain scales the plate
+    displacement (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`.
+    Writes out_dist (K, N, S, M) m (max_range when no echo), out_kind (K, N, S, M) (HIT_*), out_xtalk
+    (K, N, S, M) m: the shortest emitter → receiver path heard under geometric cross-talk
+    (:func:`~finkensim.sensors.sonar_kernels.crosstalk_path`) among the copters firing in the receiver's
+    slot — the slots of draw m use uniform m of each copter's schedule cell, so the ensemble spreads over
+    the schedules a random-offset sonar may have used; inf if none.
     """
     K = times.shape[0]
-    N = pos.shape[1]
-    S = mount_yaw.shape[0]
-    P = plate_a.shape[0]
-    R = ray_angles.shape[0]
+    N = geo.pos.shape[1]
+    S = sp.mount_yaw.shape[0]
+    P = geo.plate_a.shape[0]
     for i in prange(K * M):
         ti = i // M
         m = i % M
-        k = times[ti]
-        pb_ = np.empty((N, 2))
-        yb = np.empty(N)
-        for n in range(N):
-            x, y, w = _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            pb_[n, 0] = x
-            pb_[n, 1] = y
-            yb[n] = w
-        pa = np.empty((P, 2))
-        pbb = np.empty((P, 2))
-        for s in range(P):
-            sh = lever * gain * np.sin(theta[k, s])
-            if sh > lever:
-                sh = lever
-            pa[s, 0] = plate_a[s, 0] + sh * normal_[s, 0]
-            pa[s, 1] = plate_a[s, 1] + sh * normal_[s, 1]
-            pbb[s, 0] = plate_b[s, 0] + sh * normal_[s, 0]
-            pbb[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
-        slots = np.zeros(N, dtype=np.int64)
-        if schedule == SCHEDULE_ROUND_ROBIN:
-            for n in range(N):
-                slots[n] = n % n_slots
-        elif schedule == SCHEDULE_RANDOM_OFFSET:
-            for n in range(N):
-                u = uniform(counter_key(seed, flight_id, k, n, STREAM_SONAR_SCHEDULE), m)
-                slots[n] = min(int(u * n_slots), n_slots - 1)
-        buf = np.empty((N, S, 4))
+        dist = np.empty((N, S))
+        kind = np.empty((N, S), dtype=np.int64)
+        xt = np.empty((N, S))
+        _sonar_draw(geo, sp, gain, times[ti], m, noise, np.empty((N, 2)), np.empty(N), np.empty((P, 2)),
+                    np.empty((P, 2)), np.zeros(N, dtype=np.int64), np.empty((N, S, 4)), dist, kind,
+                    np.empty((N, S, 2)), xt)
         for n in range(N):
             for s in range(S):
-                psi = yb[n] + mount_yaw[s]
-                c = np.cos(psi)
-                sn = np.sin(psi)
-                buf[n, s, 0] = pb_[n, 0] + offset * c
-                buf[n, s, 1] = pb_[n, 1] + offset * sn
-                buf[n, s, 2] = c
-                buf[n, s, 3] = sn
-        for n in range(N):
-            for s in range(S):
-                ox = buf[n, s, 0]
-                oy = buf[n, s, 1]
-                best = np.inf
-                bkind = HIT_NONE
-                for r in range(R):
-                    if ray_angles[r] == 0.0:
-                        dx = buf[n, s, 2]
-                        dy = buf[n, s, 3]
-                    else:
-                        a = yb[n] + mount_yaw[s] + ray_angles[r]
-                        dx = np.cos(a)
-                        dy = np.sin(a)
-                    t_, hk = cast_ray(ox, oy, dx, dy, n, pb_, radius, pa, pbb, width, length)
-                    if t_ < best:
-                        best = t_
-                        bkind = hk
-                if best > max_range:
-                    out_dist[ti, n, s, m] = max_range
-                    out_kind[ti, n, s, m] = HIT_NONE
-                else:
-                    out_dist[ti, n, s, m] = best
-                    out_kind[ti, n, s, m] = bkind
-                # cross-talk: nearest emitter sonar of another copter in mutual view
-                ux = buf[n, s, 2]
-                uy = buf[n, s, 3]
-                lim = 2.0 * max_range
-                bl = np.inf
-                for q in range(N):
-                    if q == n or slots[q] != slots[n]:
-                        continue
-                    for j in range(S):
-                        wx = buf[q, j, 0] - ox
-                        wy = buf[q, j, 1] - oy
-                        L = np.sqrt(wx * wx + wy * wy)
-                        if L <= 0.0 or L > lim or L >= bl:
-                            continue
-                        if ux * wx + uy * wy >= cos_xtalk * L and -(buf[q, j, 2] * wx + buf[q, j, 3] * wy) >= cos_xtalk * L:
-                            bl = L
-                out_xtalk[ti, n, s, m] = bl
+                out_dist[ti, n, s, m] = dist[n, s]
+                out_kind[ti, n, s, m] = kind[n, s]
+                out_xtalk[ti, n, s, m] = xt[n, s]
+
+
+@njit(cache=True)
+def _sonar_context(P2, yaw_k, theta_k, w, pa, pb, sp, n, s, t_, hk, hx, hy, out):
+    """Features 2, 3, 5 of a wall hit (see :func:`sonar_features`) into out (8,); pa, pb (S_p, 2) m the
+    displaced plate surfaces."""
+    out[2] = np.nan
+    out[3] = np.nan
+    out[5] = np.nan
+    if hk != HIT_WALL or t_ > sp.max_range:
+        return
+    psi = yaw_k[n] + sp.mount_yaw[s]
+    dx = np.cos(psi)
+    dy = np.sin(psi)
+    # the wall line the ray meets (nearest of the four) gives the normal
+    dl = min(min(hx, w.width - hx), min(hy, w.length - hy))
+    if dl == hx or dl == w.width - hx:
+        out[2] = np.degrees(np.arccos(min(1.0, abs(dx))))
+    else:
+        out[2] = np.degrees(np.arccos(min(1.0, abs(dy))))
+    best = np.inf
+    for q in range(P2.shape[0]):
+        ddx = P2[q, 0] - hx
+        ddy = P2[q, 1] - hy
+        best = min(best, np.sqrt(ddx * ddx + ddy * ddy))
+    out[3] = best
+    # the plate at the hit (nearest displaced plate surface) and its displacement
+    bs = 0.0
+    bd = np.inf
+    for p in range(pa.shape[0]):
+        d = point_segment_distance(hx, hy, pa[p, 0], pa[p, 1], pb[p, 0], pb[p, 1])
+        if d < bd:
+            bd = d
+            bs = w.lever * np.sin(theta_k[p])
+    out[5] = bs
 
 
 @njit(cache=True, parallel=True)
-def sonar_features(pos, yaw, theta, plate_a, plate_b, normal_, lever, width, length, mount_yaw, offset, radius,
-                   max_range, cos_cone, times, sigma_xy, sigma_yaw, out):
+def sonar_features(geo, sp, times, sigma_xy, sigma_yaw, out):
     """Context features of every sonar reading at the logged poses → out (K, N, S, 8):
 
     0 true_range (m), 1 hit_type (0 none, 1 wall, 2 copter), 2 incidence (deg, ray vs wall
@@ -251,92 +289,75 @@ def sonar_features(pos, yaw, theta, plate_a, plate_b, normal_, lever, width, len
     of the pose noise: how far the ray is from grazing another copter's rim, or the hit from the
     range limit, divided by σ_xy + σ_ψ·distance; inf without noise). Readings with a small
     ambiguity have an ideal value that flips under tracking noise.
+
+    geo: :class:`ReplayGeometry`; sp: the SonarModel with one ray along each sonar's heading
+    (``sp.with_beam(0.0, 1)``); ``sp.cos_half_angle`` is the cone of feature 4.
     """
     K = times.shape[0]
-    N = pos.shape[1]
-    S = mount_yaw.shape[0]
-    P = plate_a.shape[0]
+    N = geo.pos.shape[1]
+    S = sp.mount_yaw.shape[0]
+    w = geo
+    P = w.plate_a.shape[0]
     for ti in prange(K):
         k = times[ti]
         pa = np.empty((P, 2))
         pbb = np.empty((P, 2))
-        for s in range(P):
-            sh = lever * np.sin(theta[k, s])
-            pa[s, 0] = plate_a[s, 0] + sh * normal_[s, 0]
-            pa[s, 1] = plate_a[s, 1] + sh * normal_[s, 1]
-            pbb[s, 0] = plate_b[s, 0] + sh * normal_[s, 0]
-            pbb[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
-        P2 = pos[k]
+        buf = np.empty((N, S, 4))
+        displaced_plates_env(geo.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, pa, pbb)
+        P2 = geo.pos[k]
+        sonar_poses_env(P2, geo.yaw[k], sp, buf)
+        bands = plate_bands(pa, pbb, w.width, w.length)
         for n in range(N):
-            wd = min(min(P2[n, 0], width - P2[n, 0]), min(P2[n, 1], length - P2[n, 1]))
+            wd = min(min(P2[n, 0], w.width - P2[n, 0]), min(P2[n, 1], w.length - P2[n, 1]))
             for s in range(S):
-                psi = yaw[k, n] + mount_yaw[s]
-                dx = np.cos(psi)
-                dy = np.sin(psi)
-                ox = P2[n, 0] + offset * dx
-                oy = P2[n, 1] + offset * dy
-                t_, hk = cast_ray(ox, oy, dx, dy, n, P2, radius, pa, pbb, width, length)
-                out[ti, n, s, 6] = wd
-                if t_ > max_range:
-                    out[ti, n, s, 0] = max_range
-                    out[ti, n, s, 1] = HIT_NONE
+                t_, hk, hx, hy = sonar_hit(n, s, P2, geo.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands)
+                o = out[ti, n, s]
+                o[6] = wd
+                if t_ > sp.max_range:
+                    o[0] = sp.max_range
+                    o[1] = HIT_NONE
                 else:
-                    out[ti, n, s, 0] = t_
-                    out[ti, n, s, 1] = hk
-                out[ti, n, s, 2] = np.nan
-                out[ti, n, s, 3] = np.nan
-                out[ti, n, s, 5] = np.nan
-                if hk == HIT_WALL and t_ <= max_range:
-                    hx = ox + t_ * dx
-                    hy = oy + t_ * dy
-                    # the wall line the ray meets (nearest of the four) gives the normal
-                    dl = min(min(hx, width - hx), min(hy, length - hy))
-                    if dl == hx or dl == width - hx:
-                        out[ti, n, s, 2] = np.degrees(np.arccos(min(1.0, abs(dx))))
-                    else:
-                        out[ti, n, s, 2] = np.degrees(np.arccos(min(1.0, abs(dy))))
-                    best = np.inf
-                    for q in range(N):
-                        ddx = P2[q, 0] - hx
-                        ddy = P2[q, 1] - hy
-                        best = min(best, np.sqrt(ddx * ddx + ddy * ddy))
-                    out[ti, n, s, 3] = best
-                    bs = 0.0
-                    bd = np.inf
-                    for p in range(P):
-                        d = point_segment_distance(hx, hy, pa[p, 0], pa[p, 1], pbb[p, 0], pbb[p, 1])
-                        if d < bd:
-                            bd = d
-                            bs = lever * np.sin(theta[k, p])
-                    out[ti, n, s, 5] = bs
-                inb = 0.0
-                amb = np.inf
-                for q in range(N):
-                    if q == n:
-                        continue
-                    wx = P2[q, 0] - ox
-                    wy = P2[q, 1] - oy
-                    L = np.sqrt(wx * wx + wy * wy)
-                    if 0.0 < L <= max_range and dx * wx + dy * wy >= cos_cone * L:
-                        inb = 1.0
-                    along = dx * wx + dy * wy
-                    if along > 0.0 and along < min(t_, max_range) + radius:
-                        perp = abs(dx * wy - dy * wx)
-                        sc = sigma_xy * 1.4142 + sigma_yaw * along
-                        if sc > 0.0:
-                            amb = min(amb, abs(perp - radius) / sc)
-                sc = sigma_xy * 1.4142 + sigma_yaw * t_
-                if sc > 0.0 and np.isfinite(t_):
-                    amb = min(amb, abs(t_ - max_range) / sc)
-                out[ti, n, s, 4] = inb
-                out[ti, n, s, 7] = amb
+                    o[0] = t_
+                    o[1] = hk
+                _sonar_context(P2, geo.yaw[k], geo.theta[k], w, pa, pbb, sp, n, s, t_, hk, hx, hy, o)
+                o[4], o[7] = _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw)
+
+
+@njit(cache=True)
+def _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw):
+    """(neighbor_in_beam 0/1, ambiguity) of sonar s of copter n with ray length t_ (see :func:`sonar_features`)."""
+    ox = buf[n, s, 0]
+    oy = buf[n, s, 1]
+    dx = buf[n, s, 2]
+    dy = buf[n, s, 3]
+    inb = 0.0
+    amb = np.inf
+    for q in range(P2.shape[0]):
+        if q == n:
+            continue
+        wx = P2[q, 0] - ox
+        wy = P2[q, 1] - oy
+        L = np.sqrt(wx * wx + wy * wy)
+        if 0.0 < L <= sp.max_range and dx * wx + dy * wy >= sp.cos_half_angle * L:
+            inb = 1.0
+        along = dx * wx + dy * wy
+        if along > 0.0 and along < min(t_, sp.max_range) + sp.radius:
+            perp = abs(dx * wy - dy * wx)
+            sc = sigma_xy * 1.4142 + sigma_yaw * along
+            if sc > 0.0:
+                amb = min(amb, abs(perp - sp.radius) / sc)
+    sc = sigma_xy * 1.4142 + sigma_yaw * t_
+    if sc > 0.0 and np.isfinite(t_):
+        amb = min(amb, abs(t_ - sp.max_range) / sc)
+    return inb, amb
 
 
 # --------------------------------------------------------------------------------------- ranging
 
 @njit(cache=True, parallel=True)
-def ranging_draws(pos, yaw, times, sigma_xy, seed, flight_id, M, out):
-    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0)."""
+def ranging_draws(pos, yaw, times, noise, M, out):
+    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0). noise: :class:`PoseNoise`
+    (ranging has no direction: pass sigma_yaw = 0)."""
     K = times.shape[0]
     N = pos.shape[1]
     for i in prange(K * M):
@@ -344,10 +365,7 @@ def ranging_draws(pos, yaw, times, sigma_xy, seed, flight_id, M, out):
         m = i % M
         k = times[ti]
         P = np.empty((N, 2))
-        for n in range(N):
-            x, y, w = _pose_draw(pos, yaw, k, n, m, sigma_xy, 0.0, seed, flight_id)
-            P[n, 0] = x
-            P[n, 1] = y
+        draw_poses(pos, yaw, k, m, noise, P, np.empty(N))
         for a in range(N):
             out[ti, a, a, m] = 0.0
             for b in range(a + 1, N):
@@ -383,16 +401,18 @@ def ranging_clearance(pos, times, out):
 # --------------------------------------------------------------------------------------- imu
 
 @njit(cache=True, parallel=True)
-def imu_window_draws(pos, yaw_unwrapped, t, times, h, sigma_xy, sigma_yaw, seed, flight_id, M, out):
+def imu_window_draws(pos, yaw_unwrapped, t, times, h, noise, M, out):
     """Window-integrated ideal IMU values for M pose draws: out (K, N, 3, M) =
     (Δv_x, Δv_y) m/s world frame and Δψ rad over the h steps ending at each time in ``times``.
 
     Δv = v_k − v_{k−h} with v_j = (p_j − p_{j−1}) / (t_j − t_{j−1}) is exactly Σ a_j dt_j of the
     simulator's recorded accelerations, and Δψ = ψ_k − ψ_{k−h} is Σ ω_j dt_j: integrating the IMU
-    instead of differentiating the poses twice avoids amplifying tracking noise by 1/dt².
+    instead of differentiating the poses twice avoids amplifying tracking noise by 1/dt². noise:
+    :class:`PoseNoise`.
     """
     K = times.shape[0]
     N = pos.shape[1]
+    sigma_xy, sigma_yaw, seed, flight_id = noise
     for i in prange(K * M):
         ti = i // M
         m = i % M

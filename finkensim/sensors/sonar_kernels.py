@@ -1,0 +1,306 @@
+"""Per-environment sonar kernels: the one implementation of the ultrasonic sensor model.
+
+Every caller — the simulator's batched functions (:mod:`finkensim.sensors.ultrasonic`), the compiled
+closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.replay`,
+:mod:`finkensim.gap.predictive`) — computes sonar readings with these functions, fed by the same
+:class:`~finkensim.sensors.sonar_model.SonarModel` record:
+
+- geometry: :func:`shifted_plates_env` / :func:`displaced_plates_env` (plate surfaces at flight height),
+  :func:`sonar_poses_env` (sonar origins and headings), :func:`sonar_hit` (nearest echo of one sonar over
+  the rays of its beam, :func:`~finkensim.kernels.raycast.cast_ray_culled`), :func:`ideal_env`;
+- cross-talk geometry: :func:`fire_slot` / :func:`fire_slots_env` (firing schedule),
+  :func:`crosstalk_path` (shortest emitter → receiver path heard by a sonar);
+- the error model of one reading: :func:`measured_reading` (echo error, constant and geometric
+  cross-talk, clamp), built from :func:`echo_reading` and :func:`clamp_reading`;
+- :func:`ultrasonic_env`, :func:`down_env`: one environment's measured readings.
+
+All are ``inline="always"`` numba functions of arrays, numbers and the model record, so compiled loops
+can call them with work buffers allocated once. The model, the random-number layout and the units
+are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sp.mount_yaw.shape[0]``
+(4 in the simulator).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
+from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
+from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
+                          ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN)
+
+__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "ideal_env", "fire_slot",
+           "fire_slots_env", "crosstalk_path", "echo_reading", "clamp_reading", "measured_reading",
+           "ultrasonic_env", "down_env"]
+
+#: Uniform index (inside sonar k's block 8k … 8k + 7 of a STREAM_SONAR cell) of the coin that decides
+#: whether a receiver in geometric cross-talk position hears the emitter (drawn only when the model's
+#: ``crosstalk_hear_probability`` is below 1).
+HEAR_COIN = 6
+
+
+# ---------------------------------------------------------------------------------------------
+# geometry
+
+@njit(cache=True, inline="always")
+def shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, gain, pa_out, pb_out):
+    """Plate surfaces at flight height, each shifted along its inward normal by min(lever·gain·sin θ, lever).
+
+    theta_b (S,) rad plate angles; plate_a, plate_b, normal_ (S, 2) m (the hanging plates and their
+    inward normals); lever m (hinge height − altitude); gain: scale of the displacement (1 = the hinge
+    model; the gap diagnosis fits other values). Writes pa_out, pb_out (S, 2) m.
+    """
+    for s in range(theta_b.shape[0]):
+        sh = lever * gain * np.sin(theta_b[s])
+        if sh > lever:
+            sh = lever
+        pa_out[s, 0] = plate_a[s, 0] + sh * normal_[s, 0]
+        pa_out[s, 1] = plate_a[s, 1] + sh * normal_[s, 1]
+        pb_out[s, 0] = plate_b[s, 0] + sh * normal_[s, 0]
+        pb_out[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
+
+
+@njit(cache=True, inline="always")
+def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_out):
+    """Plate surfaces at flight height for one environment: theta_b (S,) rad → pa_out, pb_out (S, 2) m,
+    each plate shifted along its inward normal by lever · sin θ (as ``Arena.plate_surfaces``)."""
+    shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, 1.0, pa_out, pb_out)
+
+
+@njit(cache=True, inline="always")
+def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
+    """Sonar origins and headings of one environment → sonar_buf (N, S, 4): (x m, y m, cos ψ, sin ψ)."""
+    for n in range(pos_b.shape[0]):
+        for k in range(sp.mount_yaw.shape[0]):
+            psi = yaw_b[n] + sp.mount_yaw[k]
+            c = np.cos(psi)
+            s = np.sin(psi)
+            sonar_buf[n, k, 0] = pos_b[n, 0] + sp.offset * c
+            sonar_buf[n, k, 1] = pos_b[n, 1] + sp.offset * s
+            sonar_buf[n, k, 2] = c
+            sonar_buf[n, k, 3] = s
+
+
+@njit(cache=True, inline="always")
+def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands):
+    """Nearest echo of sonar k of copter n over the rays of its beam, not limited to the range.
+
+    Geometry as :func:`ideal_env` (sonar_buf from :func:`sonar_poses_env`, bands from
+    :func:`~finkensim.kernels.raycast.plate_bands`). Returns (t m, kind HIT_*, hx m, hy m): the distance
+    (inf when a ray escapes nothing — never inside the arena), what was hit, and where (NaN if nothing).
+    """
+    ox = sonar_buf[n, k, 0]
+    oy = sonar_buf[n, k, 1]
+    psi = yaw_b[n] + sp.mount_yaw[k]
+    R = sp.ray_angles.shape[0]
+    best = np.inf
+    bkind = HIT_NONE
+    hx = np.nan
+    hy = np.nan
+    for r in range(R):
+        if R == 1 and sp.ray_angles[0] == 0.0:
+            dx = sonar_buf[n, k, 2]
+            dy = sonar_buf[n, k, 3]
+        else:
+            a = psi + sp.ray_angles[r]
+            dx = np.cos(a)
+            dy = np.sin(a)
+        t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands)
+        if t < best:
+            best = t
+            bkind = hk
+            hx = ox + t * dx
+            hy = oy + t * dy
+    return best, bkind, hx, hy
+
+
+@njit(cache=True, inline="always")
+def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit):
+    """Ideal horizontal readings of one environment.
+
+    pos_b (N, 2) m, yaw_b (N,) rad, pa/pb (S_p, 2) m displaced plate surfaces
+    (:func:`displaced_plates_env`), width/length m. Writes sonar_buf (N, S, 4) (see
+    :func:`sonar_poses_env`), dist (N, S) m (max_range when no echo), kind (N, S) int (HIT_*),
+    hit (N, S, 2) m (nearest hit point, also beyond range).
+    """
+    sonar_poses_env(pos_b, yaw_b, sp, sonar_buf)
+    bands = plate_bands(pa, pb, width, length)
+    for n in range(pos_b.shape[0]):
+        for k in range(sp.mount_yaw.shape[0]):
+            best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands)
+            if best > sp.max_range:
+                dist[n, k] = sp.max_range
+                kind[n, k] = HIT_NONE
+                if not np.isfinite(best):
+                    hx = sonar_buf[n, k, 0] + sp.max_range * sonar_buf[n, k, 2]
+                    hy = sonar_buf[n, k, 1] + sp.max_range * sonar_buf[n, k, 3]
+            else:
+                dist[n, k] = best
+                kind[n, k] = bkind
+            hit[n, k, 0] = hx
+            hit[n, k, 1] = hy
+
+
+# ---------------------------------------------------------------------------------------------
+# cross-talk geometry
+
+@njit(cache=True, inline="always")
+def fire_slot(seed, env_id, step, n, sp, draw):
+    """Firing slot (0 … n_slots − 1) of copter n at this step.
+
+    ``draw`` picks the uniform of the random-offset schedule inside the copter's STREAM_SONAR_SCHEDULE
+    cell: the simulator uses 0; the gap replay, which does not know the real schedule, uses its draw
+    index so that its predictive ensemble spreads over the possible schedules.
+    """
+    if sp.schedule == SCHEDULE_ROUND_ROBIN:
+        return n % sp.n_slots
+    if sp.schedule == SCHEDULE_RANDOM_OFFSET:
+        u = uniform(counter_key(seed, env_id, step, n, STREAM_SONAR_SCHEDULE), draw)
+        return min(int(u * sp.n_slots), sp.n_slots - 1)
+    return 0
+
+
+@njit(cache=True, inline="always")
+def fire_slots_env(seed, env_id, step, sp, slot, draw):
+    """Firing slots of every copter of one environment → slot (N,) int64 (``draw`` as in :func:`fire_slot`)."""
+    for n in range(slot.shape[0]):
+        slot[n] = fire_slot(seed, env_id, step, n, sp, draw)
+
+
+@njit(cache=True, inline="always")
+def crosstalk_path(n, k, sonar_buf, slot, sp):
+    """Shortest emitter→receiver path (m) heard by sonar (n, k) under geometric cross-talk; inf if none.
+
+    Emitters are the sonars of other copters firing in copter n's slot (``slot`` (N,)), inside the
+    receiver's cone and pointing at it, within 2·max_range. sonar_buf (N, S, 4) from :func:`sonar_poses_env`.
+    """
+    rx = sonar_buf[n, k, 0]
+    ry = sonar_buf[n, k, 1]
+    ux = sonar_buf[n, k, 2]
+    uy = sonar_buf[n, k, 3]
+    lim = 2.0 * sp.max_range
+    ch = sp.cos_half_angle
+    best = np.inf
+    # Squared-length pre-tests, each only rejecting emitters the exact test below rejects too, so the
+    # result is that of the plain loop (L = sqrt(wx² + wy²) per emitter, then the four comparisons) bit
+    # for bit, with the sqrt left for emitters that pass: fl∘sqrt is monotonic, so L² > q with
+    # fl(sqrt(q)) > x implies L > x, and q = x²·(1 + 1e-12) is such a bound for x > 0 (the margin is
+    # ~10³ times the rounding of the squares; used for x > 1e-100, so x² does not underflow). With
+    # cos(half angle) > 0 a negative dot product d fails its cone test, and for d ≥ 0, d² < ch²·L²·(1 − 1e-12)
+    # implies d < fl(ch·fl(sqrt(L²))) (used for ch > 1e-50 and 1e-200 < L² < 1e200: no underflow or
+    # overflow; a d² that underflows is < 1e-308 while ch·L > 1e-150).
+    if lim > 1e-100:
+        lim2 = lim * lim * (1.0 + 1e-12)
+    elif lim <= 0.0:
+        lim2 = -1.0  # every L > lim (and L2 = NaN fails every test anyway)
+    else:
+        lim2 = np.inf  # tiny or NaN: no pre-test
+    best2 = np.inf
+    ch2 = ch * ch * (1.0 - 1e-12)
+    square_cone = ch > 1e-50
+    for m in range(sonar_buf.shape[0]):
+        if m == n or slot[m] != slot[n]:
+            continue
+        for j in range(sonar_buf.shape[1]):
+            wx = sonar_buf[m, j, 0] - rx
+            wy = sonar_buf[m, j, 1] - ry
+            L2 = wx * wx + wy * wy
+            d_rx = ux * wx + uy * wy
+            d_em = -(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy)
+            # evaluated without short-circuits (bitwise | and &): one well-predicted branch per emitter
+            skip = (L2 > lim2) | (L2 > best2)  # L > lim or L > best
+            if square_cone:
+                c2 = ch2 * L2
+                outside = (d_rx < 0.0) | (d_em < 0.0) | (d_rx * d_rx < c2) | (d_em * d_em < c2)  # d < ch·L
+                skip = skip | ((L2 > 1e-200) & (L2 < 1e200) & outside)
+            if skip:
+                continue
+            L = np.sqrt(L2)
+            if L <= 0.0 or L > lim or L >= best:
+                continue
+            if d_rx >= ch * L and d_em >= ch * L:
+                best = L
+                best2 = L * L * (1.0 + 1e-12) if L > 1e-100 else np.inf
+    return best
+
+
+# ---------------------------------------------------------------------------------------------
+# the error model of one reading
+
+@njit(cache=True, inline="always")
+def echo_reading(d, echo, key, k, sp):
+    """Echo reading (m, unclamped) of sonar k for true distance d; ``echo`` False → max_range exactly.
+
+    An echo reads range_scale · d + bias plus the error of ``sp.error`` (random numbers of block k of
+    ``key``, see :mod:`finkensim.sensors.ultrasonic`).
+    """
+    if not echo:
+        return sp.max_range
+    y = d * sp.range_scale + sp.bias
+    if sp.error == ERROR_NONE:
+        return y
+    if sp.error == ERROR_GAUSSIAN:
+        return y + sp.sigma * normal(key, 4 * k + 1)
+    u = uniform(key, 8 * k + 1)
+    R = np.sqrt(-2.0 * sp.sigma * sp.sigma * np.log(u))
+    if sp.error == ERROR_SEED:
+        return y + (R - sp.rayleigh_s)
+    return y + sp.rayleigh_sign * (R - sp.rayleigh_s)
+
+
+@njit(cache=True, inline="always")
+def clamp_reading(y, sp):
+    """y clamped to [min_range, max_range] (m)."""
+    return min(sp.max_range, max(sp.min_range, y))
+
+
+@njit(cache=True, inline="always")
+def measured_reading(d, echo, path, key, k, sp):
+    """The measured reading (m, clamped) of one sonar: echo error, then cross-talk, then the clamp.
+
+    d m true distance (max_range without an echo); echo: an echo within range; path m: the shortest
+    cross-talk path heard (:func:`crosstalk_path`; inf if none or not geometric); key, k: the random
+    numbers (block k of the STREAM_SONAR cell ``key``). Constant cross-talk replaces the reading by d/2
+    with probability ``crosstalk_probability``; geometric cross-talk reads path/2 + jitter when that
+    arrives first (heard with probability ``crosstalk_hear_probability``).
+    """
+    y = echo_reading(d, echo, key, k, sp)
+    if sp.crosstalk & CROSSTALK_CONSTANT:
+        if uniform(key, 8 * k) < sp.crosstalk_probability:
+            y = 0.5 * d
+    if sp.crosstalk & CROSSTALK_GEOMETRIC and path < np.inf:
+        if sp.crosstalk_hear_probability >= 1.0 or uniform(key, 8 * k + HEAR_COIN) < sp.crosstalk_hear_probability:
+            c = 0.5 * path
+            if sp.crosstalk_jitter > 0.0:
+                c += sp.crosstalk_jitter * normal(key, 4 * k + 2)
+            if c < y:
+                y = c
+    return clamp_reading(y, sp)
+
+
+@njit(cache=True, inline="always")
+def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step,
+                   sonar_buf, dist, kind, hit, slot, out):
+    """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
+
+    Same geometry arguments and work buffers as :func:`ideal_env` (their ideal values are left in
+    dist/kind/hit), plus slot (N,) int64 work buffer; seed, env_id, step key the random numbers.
+    """
+    ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit)
+    geometric = sp.crosstalk & CROSSTALK_GEOMETRIC
+    if geometric:
+        fire_slots_env(seed, env_id, step, sp, slot, 0)
+    for n in range(pos_b.shape[0]):
+        key = counter_key(seed, env_id, step, n, STREAM_SONAR)
+        for k in range(sp.mount_yaw.shape[0]):
+            path = crosstalk_path(n, k, sonar_buf, slot, sp) if geometric else np.inf
+            out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sp)
+
+
+@njit(cache=True, inline="always")
+def down_env(alt_b, sp, seed, env_id, step, out):
+    """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
+    for n in range(alt_b.shape[0]):
+        key = counter_key(seed, env_id, step, n, STREAM_SONAR)
+        d = alt_b[n]
+        out[n] = clamp_reading(echo_reading(d, d <= sp.max_range, key, DOWN_SONAR, sp), sp)
