@@ -1,2 +1,60 @@
-"""finkensim: fast simulator of FINken quadcopter swarms with realistic walls and sensors."""
+"""finkensim: fast simulator of FINken quadcopter swarms with realistic walls and sensors.
+
+The public API, for notebooks (``import finkensim as fs``):
+
+========================  ==================================================================================
+``fs.load_config(src)``   a validated :class:`~finkensim.config.Config` from TOML (path or text), a dict, or
+                          None for the defaults; ``fs.load_scenario()`` the embedded default scenario
+``fs.World``              the arena and copter physics: pure ``step`` of a batched state (B environments)
+``fs.SwarmSim``           the compiled closed loop: world + sensors + behaviour over B environments
+``fs.simulate_flight``    one flight of the configured scenario as a :class:`FlightLog`
+``fs.run_episode``        one Monte-Carlo episode's metrics
+``fs.FlightLog``          the flight-log record (``spec/flightlog.md``); ``fs.load_log(path)`` reads one
+``fs.run_sweep``          a Monte-Carlo sweep over a design (TOML), stored as Parquet, resumable
+``fs.diagnose``           the sim-to-real gap of real logs: a :class:`~finkensim.gap.GapReport`
+``fs.metrics``            swarm metrics (cohesion, wall contact, coverage …)
+========================  ==================================================================================
+
+Names are imported on first use, so ``import finkensim`` stays fast.
+"""
+from __future__ import annotations
+
+import importlib
+
 __version__ = "0.1.0"
+
+_API = {
+    "Config": "finkensim.config",
+    "ConfigError": "finkensim.config",
+    "load_config": "finkensim.config",
+    "World": "finkensim.world",
+    "SwarmSim": "finkensim.swarm",
+    "load_scenario": "finkensim.scenario",
+    "simulate_flight": "finkensim.scenario",
+    "run_episode": "finkensim.episode",
+    "FlightLog": "finkensim.flightlog",
+    "FlightLogError": "finkensim.flightlog",
+    "load_log": ("finkensim.flightlog", "load"),
+    "run_sweep": "finkensim.sweep",
+    "diagnose": "finkensim.gap",
+    "GapReport": "finkensim.gap",
+}
+_MODULES = ("metrics", "viz", "gap", "sweep", "flightlog", "config", "checks")
+
+__all__ = ["__version__", *_API, *_MODULES]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        target = _API[name]
+        module, attr = target if isinstance(target, tuple) else (target, name)
+        value = getattr(importlib.import_module(module), attr)
+        globals()[name] = value
+        return value
+    if name in _MODULES:
+        return importlib.import_module(f"finkensim.{name}")
+    raise AttributeError(f"module 'finkensim' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(__all__)

@@ -295,9 +295,8 @@ def cmd_gap(args) -> int:
     prog = args.prog
     from .config import ConfigError, load_config
     from .flightlog import FlightLogError, load
-    from .gap.diagnose import Diagnosis, run_diagnosis
+    from .gap import Diagnosis, run_diagnosis
     from .gap.replay import GapInputError
-    from .gap.report import write_report
 
     _use_agg()
     cfg = load_config(None)
@@ -320,7 +319,7 @@ def cmd_gap(args) -> int:
     except (GapInputError, ConfigError) as exc:
         raise UsageError(prog, str(exc)) from None
     try:
-        paths = write_report(report, args.out)
+        paths = report.write(args.out)
     except OSError as exc:
         raise UsageError(prog, f"cannot write to {args.out!r}: {exc.strerror or exc}") from None
     v = report["verdict"]

@@ -113,8 +113,7 @@ def _canonical(x):
 
 
 def gap_digest() -> dict[str, str]:
-    from finkensim.gap.diagnose import diagnose
-    from finkensim.gap.report import spec_report
+    from finkensim.gap import diagnose
     from finkensim.gap.validate import CASES, generate
 
     small = {"gap.draws": 8, "gap.max_samples_per_flight": 150, "gap.fit_max_readings": 3000, "gap.n_boot": 60}
@@ -123,7 +122,7 @@ def gap_digest() -> dict[str, str]:
                           ("ranging_nlos", ["ranging_nlos", "ranging_dropout"]),
                           ("imu_bias", ["imu_bias"])):
         logs, cfg, _ = generate(CASES[case], 5, n_flights=2, duration=20.0)
-        rep = spec_report(diagnose(logs, ["a.npz", "b.npz"], cfg.replace(small), effect_names=effects))
+        rep = diagnose(logs, ["a.npz", "b.npz"], cfg.replace(small), effect_names=effects).to_spec()
         for k in ("gap_before", "locations", "effects", "verdict"):
             text = json.dumps(_canonical(rep[k]), sort_keys=True)
             out[f"{case}.{k}"] = hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -15,14 +15,16 @@ from finkensim.arena import Arena
 from finkensim.cli import main
 from finkensim.config import Config, ConfigError, config_from_dict
 from finkensim.gap import replay as rp
-from finkensim.gap.diagnose import Diagnosis, run_diagnosis
-from finkensim.gap.predictive import _sonar_error, sonar_channel_names
+from finkensim.gap import Diagnosis, GapReport, diagnose, run_diagnosis
+from finkensim.gap.features import sonar_channel_names
+from finkensim.gap.model import sonar_reading_draws
 from finkensim.gap.replay import GapInputError
 from finkensim.gap.report import SPEC_KEYS, spec_report
 from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
                                    gap_ensemble)
 from finkensim.gap.stats import BlockBootstrap, fdr_significant, time_blocks
 from finkensim.gap.validate import CASES, generate
+from finkensim.sensors.sonar_model import SCHEDULE_SIMULTANEOUS, wall_geometry
 from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
 from tests.naive import gap as naive
 
@@ -134,9 +136,9 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     times = np.arange(pos.shape[0], dtype=np.int64)
     K, N, S = times.size, pos.shape[1], 4
     dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
-    rp.sonar_draws(pos, yaw, theta, 1.0, arena.plate_a, arena.plate_b, arena.normal, arena.lever, arena.width,
-                   arena.length, sm.mount_yaw, 0.0, cfg.copters.radius, 3.0, np.zeros(1), sm.cos_half_angle,
-                   rp.SCHEDULE_ALL, 1, times, 0.0, 0.0, 0, 0, 1, dist, kind, xt)
+    sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
+    rp.sonar_draws(rp.ReplayGeometry(pos, yaw, theta, *wall_geometry(arena)), sp, 1.0, times,
+                   rp.PoseNoise(0.0, 0.0, 0, 0), 1, dist, kind, xt)
     d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
     np.testing.assert_array_equal(dist[..., 0], d_sim)
     np.testing.assert_array_equal(kind[..., 0], k_sim)
@@ -154,9 +156,10 @@ def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
     out = {}
     for g in (0.0, 1.0, 2.0):
         d, k, x = np.empty((2, 1, 1, 1)), np.empty((2, 1, 1, 1), np.int8), np.empty((2, 1, 1, 1))
-        rp.sonar_draws(pos, yaw, theta, g, arena.plate_a, arena.plate_b, arena.normal, arena.lever, 3.0, 4.0,
-                       np.zeros(1), 0.0, 0.15, 3.0, np.zeros(1), 0.7, 0, 1, np.arange(2, dtype=np.int64), 0.0, 0.0, 0,
-                       0, 1, d, k, x)
+        sp = SonarModel.from_config(cfg)._replace(mount_yaw=np.zeros(1), offset=0.0, radius=0.15, max_range=3.0,
+                                                  cos_half_angle=0.7, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
+        rp.sonar_draws(rp.ReplayGeometry(pos, yaw, theta, *wall_geometry(arena)), sp, g, np.arange(2, dtype=np.int64),
+                       rp.PoseNoise(0.0, 0.0, 0, 0), 1, d, k, x)
         out[g] = d[0, 0, 0, 0]
     assert out[0.0] == pytest.approx(1.5)
     assert out[0.0] - out[1.0] == pytest.approx(arena.lever * np.sin(0.3))
@@ -167,7 +170,7 @@ def test_ranging_draws_and_clearance_match_references():
     _, _, pos, yaw, _ = _scene(7, n=6)
     times = np.arange(pos.shape[0], dtype=np.int64)
     out = np.empty((times.size, 6, 6, 1))
-    rp.ranging_draws(pos, yaw, times, 0.0, 0, 0, 1, out)
+    rp.ranging_draws(pos, yaw, times, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
     ref = np.sqrt(((pos[:, :, None] - pos[:, None]) ** 2).sum(-1))
     np.testing.assert_allclose(out[..., 0], ref, rtol=1e-12, atol=1e-15)
     clear = np.empty((times.size, 6, 6))
@@ -186,23 +189,26 @@ def test_imu_window_draws_match_reference():
     yu = np.cumsum(rng.normal(scale=0.05, size=(T, N)), axis=0)
     times = np.array([10, 20, 39], dtype=np.int64)
     out = np.empty((3, N, 3, 1))
-    rp.imu_window_draws(pos, yu, t, times, h, 0.0, 0.0, 0, 0, 1, out)
+    rp.imu_window_draws(pos, yu, t, times, h, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
     for i, k in enumerate(times):
         np.testing.assert_allclose(out[i, :, :, 0], naive.imu_windows(pos, yu, t, k, h), rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.parametrize("err,p_const,q_geo", [(0, 0.0, 0.0), (1, 0.0, 0.0), (2, 0.3, 0.0), (3, 0.0, 0.7), (2, 0.2, 0.5)])
-def test_sonar_error_kernel_matches_reference(err, p_const, q_geo):
+@pytest.mark.parametrize("err,flags,p_const,q_hear,scale,bias", [(0, 0, 0.0, 1.0, 1.0, 0.0), (1, 0, 0.0, 1.0, 1.1, 0.05),
+                                                            (2, 1, 0.3, 1.0, 1.0, 0.0), (3, 2, 0.0, 0.7, 0.9, 0.0),
+                                                            (2, 3, 0.2, 0.5, 1.0, -0.1), (2, 2, 0.0, 1.0, 1.0, 0.0)])
+def test_sonar_reading_draws_match_the_simulator_reference(err, flags, p_const, q_hear, scale, bias):
     rng = np.random.default_rng(9)
     n, M = 30, 6
     dist = rng.uniform(0.1, 3.0, (n, M))
     kind = rng.integers(0, 3, (n, M)).astype(np.int8)
     xt = np.where(rng.random((n, M)) < 0.5, rng.uniform(0.2, 6.0, (n, M)), np.inf)
     fl, ti, ch = rng.integers(0, 3, n), rng.integers(0, 100, n), rng.integers(0, 40, n)
-    args = (dist, kind, xt, fl, ti, ch, 11, err, 0.05, -1.0, 0.0327, 0.01, 1.02, p_const, q_geo, 0.02, 0.2, 3.0)
+    sp = SonarModel.from_config(Config())._replace(error=err, crosstalk=flags, crosstalk_probability=p_const,
+                                                   crosstalk_hear_probability=q_hear, range_scale=scale, bias=bias)
     out = np.empty((n, M))
-    _sonar_error(*args, out)
-    np.testing.assert_allclose(out, naive.sonar_error(*args), rtol=1e-12, atol=1e-15)
+    sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp, out)
+    np.testing.assert_allclose(out, naive.sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp), rtol=1e-12, atol=1e-15)
 
 
 def test_sonar_channel_names():
@@ -242,6 +248,19 @@ def test_null_case_reports_no_significant_gap_and_a_spec_report(null_logs):
         assert required in feats
     for e in js["effects"]:
         assert set(e) == {"name", "params", "score_heldout", "gap_after_train", "gap_after_heldout", "shrink_heldout"}
+    assert isinstance(rep, GapReport) and js == rep.to_spec() and json.loads(rep.to_json()) == js
+    with pytest.raises(KeyError, match="details"):
+        rep["per_sensor"]
+    assert set(rep.details.per_sensor) == set(rep.details.sensors)
+
+
+def test_report_writes_the_spec_json_markdown_and_figures(null_logs, tmp_path):
+    logs, cfg = null_logs
+    rep = diagnose(logs, ["a.npz", "b.npz"], cfg, effect_names=["sonar_bias"])
+    paths = rep.write(tmp_path / "r")
+    assert json.loads(paths["json"].read_text()) == rep.to_spec()
+    assert "# Sim-to-real gap report" in paths["md"].read_text()
+    assert paths["gap"].stat().st_size > 1000
 
 
 def test_single_flight_holds_out_its_second_half(null_logs):
@@ -303,9 +322,16 @@ def test_cli_gap_end_to_end_and_errors(null_logs, tmp_path, capsys):
 
 
 def test_every_model_parameter_belongs_to_exactly_one_sensor_for_score_caching():
-    from finkensim.gap.diagnose import _SENSOR_PREFIX, _SHARED_FIELDS
-    from finkensim.gap.predictive import ModelParams
+    from dataclasses import fields
 
-    for k in vars(ModelParams()):
-        owners = [s for s, pre in _SENSOR_PREFIX.items() if k.startswith(pre)]
-        assert k in _SHARED_FIELDS or len(owners) == 1, f"ModelParams.{k} maps to {owners}: fix _SENSOR_PREFIX"
+    from finkensim.gap.model import SENSOR_FIELDS, SHARED_FIELDS, ModelParams
+
+    for f in fields(ModelParams):
+        owners = [s for s, names in SENSOR_FIELDS.items() if f.name in names]
+        assert (f.name in SHARED_FIELDS) != (len(owners) == 1), f"ModelParams.{f.name} maps to {owners}"
+    base = ModelParams.from_config(Config())
+    for sensor in SENSOR_FIELDS:
+        hash(base.sensor_key(sensor))
+        assert base.sensor_key(sensor) == ModelParams.from_config(Config()).sensor_key(sensor) or sensor == "ranging"
+    assert base.with_sonar(bias=0.1).sensor_key("ultrasonic") != base.sensor_key("ultrasonic")
+    assert base.with_sonar(bias=0.1).sensor_key("imu") == base.sensor_key("imu")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from finkensim.gap.diagnose import Diagnosis, run_diagnosis
+from finkensim.gap import Diagnosis, run_diagnosis
 from finkensim.gap.effects import REGISTRY
 from finkensim.gap.validate import CASES, generate
 

@@ -1,0 +1,16 @@
+"""Sim-to-real gap diagnosis: where simulated sensor data disagrees with real flight logs, which unmodelled
+effect explains it, and how far the gap shrinks once that effect is added.
+
+``diagnose(logs, names, cfg)`` returns a :class:`GapReport`; :class:`Diagnosis` and :func:`run_diagnosis`
+split preparation (replay, tables, scales) from the search, so a notebook can register its own effects
+(:func:`finkensim.gap.effects.register`) and rerun the search on the same prepared data.
+"""
+from .diagnose import Diagnosis
+from .effects import Effect, Param, register
+from .model import ModelParams
+from .replay import GapInputError
+from .result import GapDetails, GapReport
+from .selection import diagnose, run_diagnosis
+
+__all__ = ["diagnose", "run_diagnosis", "Diagnosis", "GapReport", "GapDetails", "ModelParams", "Effect", "Param",
+           "register", "GapInputError"]

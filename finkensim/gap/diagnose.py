@@ -10,14 +10,13 @@
 3. **Where**: per sensor, channel and feature, quantile bins with block-bootstrap CIs, ranked by
    gap, Benjamini–Hochberg across all bins.
 4. **Which**: fit every catalogued effect (:mod:`.effects`) on the training flights, score it on
-   held-out flights; greedy forward selection adds the best while it removes a significant share
-   of the remaining held-out gap.
-5. **Verdict** per ``spec/gap-report.md``.
+   held-out flights (:meth:`Diagnosis.fit`, :meth:`Diagnosis.score_heldout`).
+
+Steps 4's selection and 5, the verdict per ``spec/gap-report.md``, are :mod:`.selection`.
 """
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -27,7 +26,8 @@ from scipy import optimize
 from ..config import Config
 from ..flightlog import FlightLog
 from . import effects as fx
-from .predictive import LRU, ImuTable, ModelParams, RangingTable, SonarTable
+from .model import ModelParams
+from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
 from .scoring import brier, brier_gap, ensemble_terms_grouped
 from .stats import BlockBootstrap, fdr_significant
@@ -157,7 +157,7 @@ class Diagnosis:
         Cached by the parameters that this sensor depends on, so effects on other sensors (and
         repeated evaluations of the same model) cost nothing.
         """
-        key = (sensor, id(rows), rows.size, _sensor_params(sensor, p))
+        key = (sensor, id(rows), rows.size, p.sensor_key(sensor))
         hit = self._score_cache.get(key)
         if hit is not None:
             return hit
@@ -324,18 +324,6 @@ class Diagnosis:
         return res
 
 
-_SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
-_SENSOR_PREFIX = {"ultrasonic": ("sonar_", "xtalk_", "wall_gain", "beam_", "latency_sonar"),
-                  "ranging": ("ranging_", "nlos_", "dropout_", "latency_ranging"),
-                  "imu": ("acc_", "gyro_", "latency_imu")}
-
-
-def _sensor_params(sensor: str, p: ModelParams) -> tuple:
-    """The values of the fields of p that a sensor's predictive distribution depends on."""
-    pre = _SENSOR_PREFIX[sensor]
-    return tuple((k, v) for k, v in vars(p).items() if k in _SHARED_FIELDS or k.startswith(pre))
-
-
 def _simplex(x0, step, lo, hi):
     pts = [np.array(x0, float)]
     for i in range(len(x0)):
@@ -421,133 +409,3 @@ def _fit_pose_noise(diag: Diagnosis, effect, current, vals):
 
 
 _CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
-
-
-# ---------------------------------------------------------------------- the whole diagnosis
-
-def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4) -> dict:
-    """Locations, effect fits, greedy selection and verdict, as a gap-report dict (spec/gap-report.md)
-    plus private keys (prefixed ``_``) for the Markdown report and figures."""
-    cfg = diag.cfg.gap
-    t0 = time.perf_counter()
-    names = list(effect_names or cfg.effects or fx.REGISTRY)
-    unknown = [n for n in names if n not in fx.REGISTRY]
-    if unknown:
-        raise GapInputError(f"gap.effects names unknown effects {unknown}; catalogued: {sorted(fx.REGISTRY)}")
-    cands = [fx.REGISTRY[n] for n in names if any(s in diag.tables for s in fx.REGISTRY[n].sensors)]
-
-    diag.say("scoring the configured model")
-    base = diag.base
-    ev_b, rows_ho = diag.evaluate(base, "heldout")
-    gap_vals = {s: g for s, (_, g) in ev_b.items()}
-    gap_before, gap_ci, gap_p = diag.overall(gap_vals, rows_ho)
-    base_scores = {s: c for s, (c, _) in ev_b.items()}
-    score_before = float(np.mean([np.nanmean(c) for c in base_scores.values()]))
-    # significance per sensor (Bonferroni over sensors): a gap in one sensor is not diluted by the
-    # noise of the others
-    per_sensor = {}
-    for s in gap_vals:
-        m, ci_s, p_s = diag.overall({s: gap_vals[s]}, {s: rows_ho[s]})
-        per_sensor[s] = {"gap": m, "ci": list(ci_s), "p": p_s,
-                         "significant": bool(np.isfinite(p_s) and p_s < cfg.alpha / len(gap_vals) and m > cfg.margin)}
-    gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
-    significant = bool(gap_sensors)
-
-    def gap_on(values_by_sensor, sensors):
-        """Mean held-out gap over the given sensors (the ones with a significant base gap)."""
-        return float(np.mean([np.nanmean(values_by_sensor[s]) for s in sensors])) if sensors else math.nan
-
-    base_gap_sig = gap_on(gap_vals, gap_sensors)
-
-    diag.say("locating the gap")
-    locs = diag.locations(base)
-
-    diag.say(f"fitting {len(cands)} effects")
-    first = []
-    for e in cands:
-        diag.say(f"  effect {e.name}")
-        r = diag.score_heldout(diag.fit(e, base))
-        first.append(r)
-    first.sort(key=lambda r: r.score_heldout)
-
-    def improvement(cur_scores, new_scores):
-        diff = {s: cur_scores[s] - new_scores[s] for s in cur_scores if s in new_scores}
-        return diag.overall(diff, rows_ho)
-
-    # greedy forward selection on the held-out score
-    current, cur_scores, cur_gap = base, base_scores, base_gap_sig
-    waterfall = [{"step": "configured model", "effect": None, "gap_heldout": gap_before, "ci": list(gap_ci)}]
-    added, pool = [], list(first)
-    ties = []
-    while significant and pool and len(added) < max_added:
-        if added:  # refit the leading remaining candidates on top of what was added
-            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool[:refit_top]),
-                          key=lambda r: r.score_heldout)
-        best = pool[0]
-        imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
-        best_gap_sig = gap_on(best.rows_gap, gap_sensors)
-        gain = (cur_gap - best_gap_sig) / cur_gap if cur_gap > 0 else 0.0
-        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and gain >= cfg.accept_gain):
-            break
-        if not added:
-            best_imp = score_before - best.score_heldout
-            ties = [r.name for r in pool[1:]
-                    if best_imp > 0 and (score_before - r.score_heldout) >= (1 - cfg.tie_tolerance) * best_imp]
-        added.append(best)
-        current, cur_scores, cur_gap = best.params, best.rows_score, best_gap_sig
-        ev_c, _ = diag.evaluate(current, "heldout")
-        g, ci, _ = diag.overall({s: gg for s, (_, gg) in ev_c.items()}, rows_ho)
-        waterfall.append({"step": f"+ {best.name}", "effect": best.name, "gap_heldout": g, "ci": list(ci),
-                          "params": _clean(best.values)})
-        pool = [r for r in pool if r.name != best.name]
-        diag.say(f"  added {best.name}: held-out gap {g:.4f}")
-        if not (cur_gap > cfg.margin):
-            break
-
-    def shrink(g):
-        return float(1.0 - g / gap_before) if gap_before > 0 else 0.0
-
-    effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
-                "gap_after_train": r.gap_train, "gap_after_heldout": r.gap_heldout,
-                "shrink_heldout": shrink(r.gap_heldout)} for r in first]
-    total_shrink = float(1.0 - cur_gap / base_gap_sig) if significant and base_gap_sig > 0 else 0.0
-    if not significant:
-        verdict = {"effect": None, "shrink_heldout": 0.0, "unexplained": False, "significant_gap": False}
-    elif not added or total_shrink < cfg.unexplained_shrink:
-        verdict = {"effect": None, "shrink_heldout": shrink(first[0].gap_heldout) if first else 0.0,
-                   "unexplained": True, "significant_gap": True}
-        diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
-    else:
-        verdict = {"effect": added[0].name, "shrink_heldout": shrink(added[0].gap_heldout), "unexplained": False,
-                   "significant_gap": True}
-
-    report = {
-        "format": "finkensim-gap-report/1",
-        "flights": {"train": diag.train_names, "heldout": diag.heldout_names},
-        "score": "crps_gap_normalised",
-        "gap_before": gap_before,
-        "locations": [{k: v for k, v in loc.items() if not k.startswith("_")} for loc in locs],
-        "effects": effects,
-        "verdict": verdict,
-    }
-    report["_private"] = {
-        "gap_before_ci": list(gap_ci), "gap_before_p": gap_p, "score_before": score_before,
-        "per_sensor": per_sensor, "gap_sensors": gap_sensors,
-        "waterfall": waterfall, "added": [r.name for r in added], "total_shrink": total_shrink, "ties": ties,
-        "significant_locations": [i for i, loc in enumerate(locs) if loc["_significant"]],
-        "scales": diag.scale, "sensors": list(diag.tables), "n_readings": {s: int(t.n) for s, t in diag.tables.items()},
-        "seconds": time.perf_counter() - t0, "block_seconds": diag.block_seconds,
-        "catch_all": [r.name for r in first if fx.REGISTRY[r.name].catch_all], "tie_tolerance": cfg.tie_tolerance,
-        "unexplained_shrink": cfg.unexplained_shrink,
-    }
-    return report
-
-
-def _clean(values: dict) -> dict:
-    return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in values.items()}
-
-
-def diagnose(logs, names, cfg: Config, heldout=None, progress=None, effect_names=None) -> dict:
-    """Run the whole diagnosis; returns the report dict (see :func:`run_diagnosis`)."""
-    diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress)
-    return run_diagnosis(diag, effect_names)

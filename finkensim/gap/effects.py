@@ -1,7 +1,7 @@
 """The catalogue of candidate unmodelled effects, each a small plug-in.
 
 An :class:`Effect` names the sensors it changes, its parameters (bounds, integer or not), and
-how a set of parameter values modifies a :class:`~finkensim.gap.predictive.ModelParams`. The
+how a set of parameter values modifies a :class:`~finkensim.gap.model.ModelParams`. The
 diagnosis fits each effect's parameters on the training flights (minimising the mean CRPS of
 the sensors it touches) and measures it on held-out flights.
 
@@ -12,7 +12,7 @@ Add your own in a notebook::
     register(Effect(
         name="sonar_offset_bias", sensors=("ultrasonic",),
         params=(Param("bias", -0.3, 0.3),),
-        apply=lambda base, v: base.with_(sonar_bias=base.sonar_bias + v["bias"]),
+        apply=lambda base, v: base.with_sonar(bias=base.sonar.bias + v["bias"]),
         doc="a constant offset on every sonar echo"))
 
 ``apply(base, values)`` must be pure. ``expected_features`` (optional) lists the location
@@ -24,8 +24,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
-from . import replay as rp
-from .predictive import ERR_NONE, ERR_RAYLEIGH, ModelParams
+from ..sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
+                                   SCHEDULE_SIMULTANEOUS)
+from .model import ModelParams
 
 
 @dataclass(frozen=True)
@@ -69,14 +70,33 @@ def register(effect: Effect) -> Effect:
 
 
 def _rayleigh_scale(base: ModelParams, v: dict) -> ModelParams:
-    sigma0 = base.sonar_sigma if base.sonar_sigma > 0 else 0.05
-    err = base.sonar_error if base.sonar_error != ERR_NONE else ERR_RAYLEIGH
-    return base.with_(sonar_error=err, sonar_sigma=sigma0 * v["scale"])
+    sigma0 = base.sonar.sigma if base.sonar.sigma > 0 else 0.05
+    err = base.sonar.error if base.sonar.error != ERROR_NONE else ERROR_RAYLEIGH
+    return base.with_sonar(error=err, sigma=sigma0 * v["scale"])
 
 
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
-    sched = base.xtalk_schedule if base.xtalk_geo_q > 0 else 0
-    return base.with_(xtalk_geo_q=v["probability"], xtalk_schedule=sched)
+    # without geometric cross-talk in the base model the schedule is unknown: every copter fires at once
+    geometric = bool(base.sonar.crosstalk & CROSSTALK_GEOMETRIC)
+    return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_GEOMETRIC, crosstalk_hear_probability=v["probability"],
+                           schedule=base.sonar.schedule if geometric else SCHEDULE_SIMULTANEOUS)
+
+
+def _crosstalk_constant(base: ModelParams, v: dict) -> ModelParams:
+    return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_CONSTANT, crosstalk_probability=v["probability"])
+
+
+def _geometric_probability(base: ModelParams) -> float:
+    return base.sonar.crosstalk_hear_probability if base.sonar.crosstalk & CROSSTALK_GEOMETRIC else 0.0
+
+
+def _constant_probability(base: ModelParams) -> float:
+    return base.sonar.crosstalk_probability if base.sonar.crosstalk & CROSSTALK_CONSTANT else 0.0
+
+
+def _beam(base: ModelParams, v: dict) -> ModelParams:
+    rays = base.sonar.n_rays if base.sonar.n_rays > 1 else base.beam_rays
+    return base.with_(sonar=base.sonar.with_beam(math.radians(v["half_angle_deg"]), rays))
 
 
 register(Effect(
@@ -89,13 +109,13 @@ register(Effect(
     "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),
     _crosstalk_geometric,
     doc="a sonar hears another copter's ping when the emitter is in its cone and points at it",
-    initial=lambda b: {"probability": b.xtalk_geo_q},
+    initial=lambda b: {"probability": _geometric_probability(b)},
     expected_features=("neighbor_in_beam", "neighbor_distance", "hit_type")))
 register(Effect(
     "crosstalk_constant", ("ultrasonic",), (Param("probability", 0.0, 0.95),),
-    lambda b, v: b.with_(xtalk_const_p=v["probability"]),
+    _crosstalk_constant,
     doc="a constant fraction of readings is halved (the report's 68 % rule)",
-    initial=lambda b: {"probability": b.xtalk_const_p},
+    initial=lambda b: {"probability": _constant_probability(b)},
     expected_features=("true_range",), catch_all=True))
 register(Effect(
     "sonar_rayleigh_scale", ("ultrasonic",), (Param("scale", 0.1, 10.0),),
@@ -104,18 +124,18 @@ register(Effect(
     initial=lambda b: {"scale": 1.0}, catch_all=True))
 register(Effect(
     "sonar_bias", ("ultrasonic",), (Param("bias", -0.5, 0.5, unit="m"),),
-    lambda b, v: b.with_(sonar_bias=b.sonar_bias + v["bias"]),
+    lambda b, v: b.with_sonar(bias=b.sonar.bias + v["bias"]),
     doc="a constant offset on every echo", initial=lambda b: {"bias": 0.0}, catch_all=True))
 register(Effect(
     "beam_width", ("ultrasonic",), (Param("half_angle_deg", 0.0, 60.0, unit="deg"),),
-    lambda b, v: b.with_(beam_half_angle=math.radians(v["half_angle_deg"])),
+    _beam,
     doc="the sonar reports the nearest echo inside a cone, not along one ray",
-    initial=lambda b: {"half_angle_deg": math.degrees(b.beam_half_angle)},
+    initial=lambda b: {"half_angle_deg": math.degrees(float(abs(b.sonar.ray_angles).max()))},
     expected_features=("neighbor_in_beam", "neighbor_distance", "hit_to_copter", "incidence", "true_range",
                        "hit_type")))
 register(Effect(
     "sound_speed", ("ultrasonic",), (Param("factor", 0.8, 1.25),),
-    lambda b, v: b.with_(sonar_scale=b.sonar_scale * v["factor"]),
+    lambda b, v: b.with_sonar(range_scale=b.sonar.range_scale * v["factor"]),
     doc="speed of sound differs from the assumed one (temperature): readings scale by a factor",
     initial=lambda b: {"factor": 1.0}, expected_features=("true_range",)))
 register(Effect(

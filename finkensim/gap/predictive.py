@@ -1,150 +1,23 @@
 """Predictive distributions of every logged reading: M draws per reading from the model.
 
-:class:`ModelParams` holds every knob of the sensor and world models that an effect can turn
-(base values from the config). Each sensor has a table (:class:`SonarTable`,
-:class:`RangingTable`, :class:`ImuTable`) of the real readings with their identity (flight,
-time, copter, channel), context features, and a ``draws(params, rows)`` method returning the
-model's predictive ensemble (len(rows), M) for those readings. Ideal values come from the replay
-kernels (pose draws); error models are applied here with counter-based random numbers keyed by
-the reading and the draw index, so a refit with other parameters reuses the same numbers.
+Each sensor has a table (:class:`SonarTable`, :class:`RangingTable`, :class:`ImuTable`) of the real
+readings with their identity (flight, time, copter, channel), context features, and a
+``draws(params, rows)`` method returning the predictive ensemble (len(rows), M) of those readings under
+a :class:`~finkensim.gap.model.ModelParams`. Ideal values come from the replay kernels (pose draws);
+errors from the simulator's own sensor models, with counter-based random numbers keyed by the reading and
+the draw index, so a refit with other parameters reuses the same numbers.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit, prange
 
 from ..config import Config
-from ..kernels.rng import STREAM_EFFECT, counter_key, normal, uniform
-from ..sensors.ranging import RangingModel
 from ..sensors.sonar_model import SonarModel
 from . import replay as rp
-
-ERR_NONE, ERR_GAUSSIAN, ERR_RAYLEIGH, ERR_SEED = 0, 1, 2, 3
-_ERR = {"none": ERR_NONE, "gaussian": ERR_GAUSSIAN, "rayleigh": ERR_RAYLEIGH, "seed": ERR_SEED}
-_SCHED = {"simultaneous": 0, "round_robin": 1,
-          "random_offset": 2}
-
-SONAR_NAMES = {0.0: "front", 90.0: "left", 180.0: "back", -90.0: "right"}
-
-
-def sonar_channel_names(yaw_rad) -> list[str]:
-    """Names of sonars from their mounting yaw: front/left/back/right within 10°, else 'sonar<k>'."""
-    names = []
-    for k, y in enumerate(np.degrees(np.asarray(yaw_rad, dtype=float))):
-        y = (y + 180.0) % 360.0 - 180.0
-        best = min(SONAR_NAMES, key=lambda a: abs((y - a + 180.0) % 360.0 - 180.0))
-        names.append(SONAR_NAMES[best] if abs((y - best + 180.0) % 360.0 - 180.0) <= 10.0 else f"sonar{k}")
-    return names
-
-
-@dataclass(frozen=True)
-class ModelParams:
-    """Every parameter of the predictive model. Units SI; ``None`` sigmas = the flight's own."""
-
-    sigma_xy: float | None = None
-    sigma_yaw: float | None = None
-    # sonar
-    sonar_error: int = ERR_RAYLEIGH
-    sonar_sigma: float = 0.05
-    sonar_sign: float = -1.0
-    sonar_bias: float = 0.0
-    sonar_scale: float = 1.0
-    sonar_min: float = 0.2
-    sonar_max: float = 3.0
-    xtalk_const_p: float = 0.0
-    xtalk_geo_q: float = 0.0
-    xtalk_schedule: int = 1
-    xtalk_slots: int = 4
-    xtalk_half_angle: float = math.radians(45.0)
-    xtalk_jitter: float = 0.02
-    wall_gain: float = 1.0
-    beam_half_angle: float = 0.0
-    beam_rays: int = 7
-    latency_sonar: int = 0
-    # ranging
-    ranging_error: str = "mixture"
-    ranging_sigma: float = 0.1
-    ranging_max: float = 2.5
-    nlos_bias: float = 0.0
-    nlos_width: float = 0.2
-    dropout_a: float = -np.inf
-    dropout_b: float = 0.0
-    latency_ranging: int = 0
-    # imu (per-sample white-noise std and bias-walk std per sqrt(s))
-    acc_white: float = 0.0
-    acc_walk: float = 0.0
-    gyro_white: float = 0.0
-    gyro_walk: float = 0.0
-    acc_bias_x: float = 0.0
-    acc_bias_y: float = 0.0
-    gyro_bias: float = 0.0
-    latency_imu: int = 0
-
-    @classmethod
-    def from_config(cls, cfg: Config) -> "ModelParams":
-        s, r, i = cfg.sonar, cfg.ranging, cfg.imu
-        dt = cfg.simulation.dt
-        geo = s.crosstalk == "geometric"
-        return cls(
-            sonar_error=_ERR[s.error], sonar_sigma=s.sigma, sonar_sign=(1.0 if s.error == "seed" else s.rayleigh_sign),
-            sonar_min=s.min_range, sonar_max=s.max_range,
-            xtalk_const_p=s.crosstalk_probability if s.crosstalk == "constant" else 0.0,
-            xtalk_geo_q=1.0 if geo else 0.0, xtalk_schedule=_SCHED[s.schedule] if geo else 0,
-            xtalk_slots=s.n_slots, xtalk_half_angle=math.radians(s.cone_half_angle_deg), xtalk_jitter=s.crosstalk_jitter,
-            wall_gain=1.0 if cfg.walls.bending else 0.0,
-            beam_half_angle=math.radians(s.cone_half_angle_deg) if s.beam == "cone" else 0.0, beam_rays=s.beam_rays,
-            ranging_error=r.error, ranging_sigma=r.sigma, ranging_max=r.max_range,
-            acc_white=i.acc_noise_density / math.sqrt(dt), acc_walk=i.acc_bias_walk,
-            gyro_white=i.gyro_noise_density / math.sqrt(dt), gyro_walk=i.gyro_bias_walk,
-        )
-
-    def with_(self, **kw) -> "ModelParams":
-        return replace(self, **kw)
-
-
-# --------------------------------------------------------------------------------------- error kernels
-
-@njit(cache=True, parallel=True)
-def _sonar_error(dist, kind, xtalk, flight, tidx, chan, seed, err, sigma, sign, rs, bias, scale, p_const, q_geo,
-                 jitter, lo, hi, out):
-    """Reading draws (n, M) from ideal draws dist/kind/xtalk (n, M) and the error parameters."""
-    n, M = dist.shape
-    for i in prange(n):
-        key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
-        for m in range(M):
-            d = dist[i, m]
-            if kind[i, m] == 0:
-                y = hi
-            else:
-                y = d * scale + bias
-                if err == 1:
-                    y += sigma * normal(key, 4 * m + 1)
-                elif err >= 2:
-                    R = np.sqrt(-2.0 * sigma * sigma * np.log(uniform(key, 8 * m)))
-                    y += sign * (R - rs)
-            if p_const > 0.0 and uniform(key, 8 * m + 4) < p_const:
-                y = 0.5 * d
-            L = xtalk[i, m]
-            if q_geo > 0.0 and L < np.inf and uniform(key, 8 * m + 5) < q_geo:
-                c = 0.5 * L + jitter * normal(key, 4 * m + 3)
-                if c < y:
-                    y = c
-            out[i, m] = min(hi, max(lo, y))
-
-
-@njit(cache=True, parallel=True)
-def _gauss_error(ideal, flight, tidx, chan, seed, white, walk_var_per_s, t_since, bias, out):
-    """Draws ideal + bias + N(0, white² + walk_var_per_s·t_since), all per row (n,). (n, M)."""
-    n, M = ideal.shape
-    for i in prange(n):
-        key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
-        sd = np.sqrt(white[i] * white[i] + walk_var_per_s[i] * t_since[i])
-        for m in range(M):
-            out[i, m] = ideal[i, m] + bias[i] + sd * normal(key, m)
-
+from .features import append_identity, nearest_neighbor, range_rate, sonar_channel_names, speed, wall_distance
+from .model import ModelParams, gaussian_draws, sonar_reading_draws
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -230,17 +103,12 @@ class Table:
     def n(self) -> int:
         return self.y.shape[0]
 
-def _range_rate(values, dt):
-    """d/dt along axis 0 (central differences), values (K, ...) sampled every dt."""
-    if values.shape[0] < 3:
-        return np.zeros_like(values)
-    return np.gradient(values, dt, axis=0)
-
 class SonarTable(Table):
     """Ultrasonic readings; ideal draws depend on pose noise, wall gain, beam width and latency."""
 
     @classmethod
     def build(cls, flights, cfg: Config, seed: int):
+        sonar = SonarModel.from_config(cfg)
         cols = {k: [] for k in ("y", "flight", "sample", "time", "copter", "channel", "sec")}
         feats = {k: [] for k in ("true_range", "hit_type", "incidence", "hit_to_copter", "neighbor_in_beam",
                                  "plate_shift", "wall_distance", "neighbor_distance", "speed", "range_rate")}
@@ -253,18 +121,18 @@ class SonarTable(Table):
             names = names or names_f
             K, N = f.samples.size, f.n_copters
             out = np.empty((K, N, S, 8))
-            rp.sonar_features(f.geometry, f.sonar_model(SonarModel.from_config(cfg)).with_beam(0.0, 1), f.samples, f.sigma_xy,
-                              f.sigma_yaw, out)
+            rp.sonar_features(f.geometry, f.sonar_model(sonar).with_beam(0.0, 1), f.samples, f.sigma_xy, f.sigma_yaw,
+                              out)
             y = f.log.ultrasonic[f.samples].copy()  # (K, N, S)
             # readings whose ideal value flips under the tracking noise (grazing a rim, at the range
             # limit) are left out of every score alike: a small ensemble cannot represent them
             y[out[..., 7] < AMBIGUITY_SIGMAS] = np.nan
-            nd = _nearest_neighbor(f.pos[f.samples])  # (K, N)
-            sp = _speed(f)  # (K, N)
-            rr = _range_rate(out[..., 0], f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
+            nd = nearest_neighbor(f.pos[f.samples])  # (K, N)
+            sp = speed(f)  # (K, N)
+            rr = range_rate(out[..., 0], f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
             kk, nn, ss = np.meshgrid(np.arange(K), np.arange(N), np.arange(S), indexing="ij")
             ok = np.isfinite(y)
-            _append_identity(cols, f, y, ok, kk, nn, ss)
+            append_identity(cols, f, y, ok, kk, nn, ss)
             for j, name in enumerate(("true_range", "hit_type", "incidence", "hit_to_copter", "neighbor_in_beam",
                                       "plate_shift", "wall_distance")):
                 feats[name].append(out[..., j][ok])
@@ -278,7 +146,6 @@ class SonarTable(Table):
                    sample=cat(cols["sample"], np.int64), time=cat(cols["time"], np.int64),
                    copter=cat(cols["copter"], np.int64), channel=cat(cols["channel"], np.int64),
                    features={k: cat(v) for k, v in feats.items()}, channel_names=names, seconds=cat(cols["sec"]))
-        t.sonar0 = SonarModel.from_config(cfg)
         return t
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
@@ -286,9 +153,10 @@ class SonarTable(Table):
         sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
         sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
         G = geometry_draws(sx, sy, M)
+        sp = p.sonar
         key = ("sonar", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
-               round(p.beam_half_angle, 6), p.beam_rays, p.latency_sonar, p.xtalk_schedule, p.xtalk_slots,
-               round(p.xtalk_half_angle, 6), G, p.sonar_max)
+               sp.ray_angles.tobytes(), p.latency_sonar, sp.schedule, sp.n_slots, sp.cos_half_angle, G,
+               sp.max_range)
         hit = self.cache.get(key)
         if hit is not None:
             return hit
@@ -297,10 +165,7 @@ class SonarTable(Table):
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        sp = fl.sonar_model(self.sonar0)._replace(
-            max_range=p.sonar_max, half_angle=p.xtalk_half_angle, cos_half_angle=math.cos(p.xtalk_half_angle),
-            schedule=p.xtalk_schedule, n_slots=p.xtalk_slots).with_beam(p.beam_half_angle, p.beam_rays)
-        rp.sonar_draws(fl.geometry, sp, p.wall_gain, times, fl.noise(sx, sy, seed), G, dist, kind, xt)
+        rp.sonar_draws(fl.geometry, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
@@ -308,10 +173,7 @@ class SonarTable(Table):
         (dist, kind, xt), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
         out = np.empty((rows.size, M))
         chan = self.copter[rows] * 64 + self.channel[rows]
-        rs = math.sqrt((4.0 - math.pi) / 2.0) * p.sonar_sigma
-        _sonar_error(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, p.sonar_error, p.sonar_sigma,
-                     p.sonar_sign, rs, p.sonar_bias, p.sonar_scale, p.xtalk_const_p, p.xtalk_geo_q, p.xtalk_jitter,
-                     p.sonar_min, p.sonar_max, out)
+        sonar_reading_draws(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, p.sonar, out)
         return out, period
 
 
@@ -336,13 +198,13 @@ class RangingTable(Table):
             kk, aa, bb = np.meshgrid(np.arange(K), np.arange(N), np.arange(N), indexing="ij")
             off = aa != bb
             miss = ~np.isfinite(y)
-            sp = _speed(f)
+            sp = speed(f)
             tr = np.minimum(d, cfg.ranging.max_range)
-            rr = _range_rate(tr, f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
-            nd = _nearest_neighbor(P)
-            wd = _wall_distance(P, f.arena)
+            rr = range_rate(tr, f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
+            nd = nearest_neighbor(P)
+            wd = wall_distance(P, f.arena)
             sel = off
-            _append_identity(cols, f, y, sel, kk, aa, bb)
+            append_identity(cols, f, y, sel, kk, aa, bb)
             cols["miss"].append(miss[sel])
             cols["clear"].append(clear[sel])
             cols["tr"].append(tr[sel])
@@ -363,13 +225,6 @@ class RangingTable(Table):
                 seconds=c["sec"].astype(float), missing=c["miss"].astype(bool))
         return t
 
-    def _model(self, p: ModelParams) -> RangingModel:
-        key = ("model", p.ranging_error, p.ranging_sigma, p.ranging_max)
-        m = self.cache.get(key)
-        if m is None:
-            m = self.cache.put(key, RangingModel(error=p.ranging_error, max_range=p.ranging_max, sigma=p.ranging_sigma))
-        return m
-
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
         G = geometry_draws(sx, 0.0, M)
@@ -384,21 +239,20 @@ class RangingTable(Table):
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.ranging_error, p.ranging_sigma,
-               p.ranging_max, seed, M)
+        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.sensor_key("ranging")[2], seed, M)
         hit = self.cache.get(key)
         if hit is None:
             (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
-            model = self._model(p)
             # one key per call; the flat index keeps draws aligned with rows and draws (common random numbers)
-            y0 = model.sample(np.minimum(x, p.ranging_max).ravel(), seed=seed, env=0, step=0, copter=0).reshape(x.shape)
+            y0 = p.ranging.sample(np.minimum(x, p.ranging.max_range).ravel(), seed=seed, env=0, step=0,
+                                  copter=0).reshape(x.shape)
             hit = self.cache.put(key, (x, y0, period))
         x, y, period = hit
-        inside = x <= p.ranging_max
+        inside = x <= p.ranging.max_range
         if p.nlos_bias != 0.0:
             clear = self.features["los_clearance"][rows]
             y = y + (p.nlos_bias * np.exp(-((clear / max(p.nlos_width, 1e-6)) ** 2)))[:, None]
-        y = np.where(inside, np.maximum(y, 0.0), p.ranging_max)
+        y = np.where(inside, np.maximum(y, 0.0), p.ranging.max_range)
         return y, period
 
     def dropout_prob(self, p: ModelParams, rows: np.ndarray) -> np.ndarray:
@@ -436,7 +290,7 @@ class ImuTable(Table):
             samples = f.samples[f.samples >= h + 1]
             if samples.size == 0:
                 continue
-            K, N = samples.size, f.n_copters
+            N = f.n_copters
             dts = np.diff(f.t, prepend=f.t[0])
             c, sn = np.cos(f.yaw), np.sin(f.yaw)
             ax, ay, g = f.log.imu_acc[..., 0], f.log.imu_acc[..., 1], f.log.imu_gyro
@@ -457,11 +311,11 @@ class ImuTable(Table):
             pos_idx = np.searchsorted(f.samples, samples)
             kk, nn, ch = np.meshgrid(pos_idx, np.arange(N), np.arange(3), indexing="ij")
             ok = np.isfinite(y)
-            sp = _speed(f)[pos_idx]
+            sp = speed(f)[pos_idx]
             P = f.pos[samples]
-            wd = _wall_distance(P, f.arena)
+            wd = wall_distance(P, f.arena)
             am = np.sqrt(y[..., 0] ** 2 + y[..., 1] ** 2) / ws[..., 0]
-            _append_identity(cols, f, y, ok, kk, nn, ch)
+            append_identity(cols, f, y, ok, kk, nn, ch)
             cols["g0"].append(g0[ok])
             cols["g1"].append(g1[ok])
             cols["ws"].append(ws[ok])
@@ -503,45 +357,13 @@ class ImuTable(Table):
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral
         bias = self.bias_gain[rows, 0] * p.acc_bias_x + self.bias_gain[rows, 1] * p.acc_bias_y
         bias = np.where(ch == 2, p.gyro_bias * ws, bias)
-        white = np.where(ch == 2, p.gyro_white, p.acc_white)
-        walk = np.where(ch == 2, p.gyro_walk, p.acc_walk)
+        white = np.where(ch == 2, p.imu.gyro_sigma, p.imu.acc_sigma)
+        acc_walk, gyro_walk = p.walk_density()
+        walk = np.where(ch == 2, gyro_walk, acc_walk)
         dt_mean = ws / self.window
         # Σ of h white samples times dt, and a bias random walk of std walk·sqrt(t) integrated over the window
         sd = np.sqrt(self.window * (white * dt_mean) ** 2 + (walk * ws) ** 2 * self.seconds[rows])
         out = np.empty_like(ideal)
-        _gauss_error(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch, seed,
-                     np.ascontiguousarray(sd), np.zeros(rows.size), np.zeros(rows.size), np.ascontiguousarray(bias), out)
+        gaussian_draws(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch,
+                       seed, np.ascontiguousarray(sd), np.ascontiguousarray(bias), out)
         return out, period
-
-
-def _append_identity(cols, f, y, sel, sample_pos, copter, channel):
-    """Append the identity columns of the selected readings y[sel] of flight f to ``cols``.
-
-    sample_pos, copter, channel: index arrays shaped like y (sample_pos indexes ``f.samples``).
-    """
-    cols["y"].append(y[sel])
-    cols["flight"].append(np.full(int(np.count_nonzero(sel)), f.index))
-    cols["sample"].append(sample_pos[sel])
-    cols["time"].append(f.samples[sample_pos[sel]])
-    cols["copter"].append(copter[sel])
-    cols["channel"].append(channel[sel])
-    cols["sec"].append(f.t[f.samples[sample_pos[sel]]] - f.t[0])
-
-
-def _wall_distance(P, arena):
-    """(..., ) distance (m) of copter centres P (..., 2) to the nearest wall line."""
-    return np.minimum(np.minimum(P[..., 0], arena.width - P[..., 0]), np.minimum(P[..., 1], arena.length - P[..., 1]))
-
-
-def _nearest_neighbor(P):
-    """(K, N) distance from each copter centre to the nearest other one (inf alone)."""
-    d = np.sqrt(((P[:, :, None, :] - P[:, None, :, :]) ** 2).sum(-1))
-    n = P.shape[1]
-    d[:, np.arange(n), np.arange(n)] = np.inf
-    return d.min(axis=-1) if n > 1 else np.full(P.shape[:2], np.inf)
-
-
-def _speed(f) -> np.ndarray:
-    """(K, N) speed (m/s) at the used samples from central differences of the logged positions."""
-    v = np.gradient(f.pos, f.t, axis=0)
-    return np.sqrt((v[f.samples] ** 2).sum(-1))

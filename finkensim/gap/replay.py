@@ -29,7 +29,7 @@ from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_env, shifted_plates_env,
                                      sonar_hit, sonar_poses_env)
-from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
+from ..sensors.sonar_model import SonarModel, wall_geometry
 
 
 class GapInputError(ValueError):

@@ -6,41 +6,24 @@ confidence of the gap, near ties between effects, and the figures.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-SPEC_KEYS = ("format", "flights", "score", "gap_before", "locations", "effects", "verdict")
+from .result import SPEC_KEYS, GapReport  # noqa: F401  (SPEC_KEYS: the spec keys, re-exported)
+
+def spec_report(report: GapReport) -> dict:
+    """The report reduced to the spec's keys, JSON-safe (same as ``report.to_spec()``)."""
+    return report.to_spec()
 
 
-def _finite(x):
-    """JSON-safe copy: NaN/inf → None, NumPy scalars → Python."""
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(float(x)) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def spec_report(report: dict) -> dict:
-    """The report reduced to the spec's keys, JSON-safe."""
-    return _finite({k: report[k] for k in SPEC_KEYS})
-
-
-def write_report(report: dict, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
+def write_report(report: GapReport, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
     """Write report.json, report.md and the figures into ``out``; returns the written paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"json": out / "report.json", "md": out / "report.md"}
-    paths["json"].write_text(json.dumps(spec_report(report), indent=1, allow_nan=False) + "\n")
+    paths["json"].write_text(report.to_json())
     figs = write_figures(report, out)
     paths.update(figs)
     paths["md"].write_text(markdown(report, {k: v.name for k, v in figs.items()}, max_locations_md))
@@ -53,8 +36,9 @@ def _fmt(x, nd=3):
     return f"{x:.{nd}f}"
 
 
-def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
-    priv = report.get("_private", {})
+def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
+    """The report for people (Markdown): verdict in words, locations, effects, waterfall; figs: name → file."""
+    priv = report.details
     v = report["verdict"]
     lines = ["# Sim-to-real gap report", ""]
     fl = report["flights"]
@@ -63,10 +47,10 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
     else:
         lines.append(f"Training flights: {', '.join(fl['train'])}  ")
         lines.append(f"Held-out flights: {', '.join(fl['heldout'])}  ")
-    lines.append(f"Sensors compared: {', '.join(priv.get('sensors', []))} "
-                 f"({', '.join(f'{k}: {n} readings' for k, n in priv.get('n_readings', {}).items())})")
+    lines.append(f"Sensors compared: {', '.join(priv.sensors)} "
+                 f"({', '.join(f'{k}: {n} readings' for k, n in priv.n_readings.items())})")
     lines.append("")
-    ci = priv.get("gap_before_ci", [None, None])
+    ci = priv.gap_before_ci
     lines.append("## Verdict")
     lines.append("")
     if not v["significant_gap"]:
@@ -74,7 +58,7 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
                      f"{_fmt(report['gap_before'])} (95 % CI {_fmt(ci[0])} … {_fmt(ci[1])}).")
     elif v["unexplained"]:
         lines.append(f"**Significant gap, unexplained.** Mean held-out gap {_fmt(report['gap_before'])} (95 % CI "
-                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least {100 * priv.get('unexplained_shrink', 0.7):.0f} % of it (best single "
+                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least {100 * priv.unexplained_shrink:.0f} % of it (best single "
                      f"effect: {report['effects'][0]['name'] if report['effects'] else 'none'}, held-out shrink "
                      f"{_fmt(v['shrink_heldout'], 2)}). Where it lies is listed below.")
     else:
@@ -83,21 +67,21 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
         lines.append(f"**{v['effect']}** explains the gap: fitted on the training flights ({params}), it shrinks the "
                      f"held-out gap by {100 * v['shrink_heldout']:.0f} % (from {_fmt(report['gap_before'])} to "
                      f"{_fmt(e['gap_after_heldout'])}).")
-        if priv.get("ties"):
+        if priv.ties:
             lines.append("")
-            lines.append(f"Near ties (held-out improvement within {priv.get('tie_tolerance', 0.1):.0%} of the best): "
-                         f"{', '.join(priv['ties'])}. Treat the choice between them as ambiguous.")
-        if len(priv.get("added", [])) > 1:
+            lines.append(f"Near ties (held-out improvement within {priv.tie_tolerance:.0%} of the best): "
+                         f"{', '.join(priv.ties)}. Treat the choice between them as ambiguous.")
+        if len(priv.added) > 1:
             lines.append("")
-            lines.append(f"Forward selection added: {', '.join(priv['added'])} (total held-out shrink "
-                         f"{100 * priv.get('total_shrink', 0):.0f} %).")
+            lines.append(f"Forward selection added: {', '.join(priv.added)} (total held-out shrink "
+                         f"{100 * priv.total_shrink:.0f} %).")
     lines.append("")
     lines.append(f"Score: `{report['score']}`: per reading, CRPS minus its expectation under the model, divided by "
                  "the sensor's base mean absolute error; 0 when reality could have come from the simulator.")
     lines.append("")
     if "gap" in figs:
         lines += ["## Where", "", f"![gap by condition]({figs['gap']})", ""]
-    sig = set(priv.get("significant_locations", []))
+    sig = set(priv.significant_locations)
     lines.append("| sensor | channel | feature | bin | gap | 95 % CI | n | significant |")
     lines.append("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for i, loc in enumerate(report["locations"][:max_locations]):
@@ -115,15 +99,15 @@ def markdown(report: dict, figs: dict, max_locations: int = 15) -> str:
                      f"{_fmt(e['gap_after_heldout'])} | {_fmt(e['shrink_heldout'], 2)} |")
     if "waterfall" in figs:
         lines += ["", "## How far", "", f"![waterfall]({figs['waterfall']})", ""]
-    for w in priv.get("waterfall", []):
+    for w in priv.waterfall:
         lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])}")
     lines.append("")
-    lines.append(f"_Computed in {priv.get('seconds', float('nan')):.0f} s; bootstrap blocks of "
-                 f"{priv.get('block_seconds', float('nan')):.1f} s._")
+    lines.append(f"_Computed in {priv.seconds:.0f} s; bootstrap blocks of "
+                 f"{priv.block_seconds:.1f} s._")
     return "\n".join(lines) + "\n"
 
 
-def write_figures(report: dict, out: Path) -> dict[str, Path]:
+def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
     """gap_by_condition.png, effects.png, waterfall.png (matplotlib, Agg-safe)."""
     import matplotlib
 
@@ -135,8 +119,8 @@ def write_figures(report: dict, out: Path) -> dict[str, Path]:
     import matplotlib.pyplot as plt
 
     paths = {}
-    priv = report.get("_private", {})
-    sig = set(priv.get("significant_locations", []))
+    priv = report.details
+    sig = set(priv.significant_locations)
     locs = report["locations"][:15]
     if locs:
         fig, ax = plt.subplots(figsize=(8, 0.35 * len(locs) + 1.2))
@@ -172,7 +156,7 @@ def write_figures(report: dict, out: Path) -> dict[str, Path]:
         paths["effects"] = out / "effects.png"
         fig.savefig(paths["effects"], dpi=110)
         plt.close(fig)
-    wf = priv.get("waterfall", [])
+    wf = priv.waterfall
     if wf:
         fig, ax = plt.subplots(figsize=(6, 3.5))
         vals = [w["gap_heldout"] for w in wf]

@@ -21,7 +21,8 @@ import numpy as np
 from ..config import Config, load_config
 from ..flightlog import FlightLog
 from ..scenario import simulate_flight
-from .diagnose import Diagnosis, run_diagnosis
+from .diagnose import Diagnosis
+from .selection import run_diagnosis
 from .effects import REGISTRY
 
 POSE_SIGMA_XY = 0.002  # m, tracking noise put on every generated log (and declared in meta)
@@ -233,7 +234,7 @@ def location_ok(report: dict, case: Case, truth: dict) -> bool | None:
     sensor = truth.get("_sensor", case.sensor)
     if case.effect is None and case.name == "null":
         return None
-    sig = report["_private"]["significant_locations"]
+    sig = report.details.significant_locations
     if not sig:
         return False
     top = report["locations"][sig[0]] if sig else None

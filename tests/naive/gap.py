@@ -5,6 +5,8 @@ import numpy as np
 
 from finkensim.kernels.rng import STREAM_EFFECT, normals_array, uniforms_array
 
+from .ultrasonic import naive_measured
+
 
 def ensemble_terms(draws, y, period=None):
     """(E|X − y|, E|X − X'|) by brute force over all pairs (excluding pairs i ≡ j mod period)."""
@@ -22,30 +24,16 @@ def ensemble_terms(draws, y, period=None):
     return a, b
 
 
-def sonar_error(dist, kind, xtalk, flight, tidx, chan, seed, err, sigma, sign, rs, bias, scale, p_const, q_geo,
-                jitter, lo, hi):
-    """Reading draws from ideal draws, using the same counter-based numbers as the kernel."""
+def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp):
+    """Reading draws (n, M) from ideal draws with the simulator's measured-reading reference, draw m using
+    block m of the reading's STREAM_EFFECT numbers."""
     n, M = dist.shape
     out = np.empty((n, M))
     for i in range(n):
         u = uniforms_array(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT, 8 * M)
         z = normals_array(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT, 4 * M)
         for m in range(M):
-            d = dist[i, m]
-            if kind[i, m] == 0:
-                y = hi
-            else:
-                y = d * scale + bias
-                if err == 1:
-                    y += sigma * z[4 * m + 1]
-                elif err >= 2:
-                    R = np.sqrt(-2.0 * sigma**2 * np.log(u[8 * m]))
-                    y += sign * (R - rs)
-            if p_const > 0 and u[8 * m + 4] < p_const:
-                y = 0.5 * d
-            if q_geo > 0 and np.isfinite(xtalk[i, m]) and u[8 * m + 5] < q_geo:
-                y = min(y, 0.5 * xtalk[i, m] + jitter * z[4 * m + 3])
-            out[i, m] = min(hi, max(lo, y))
+            out[i, m] = naive_measured(dist[i, m], kind[i, m] != 0, xtalk[i, m], m, u, z, sp)
     return out
 
 

@@ -134,18 +134,32 @@ def naive_slots(sp, seed, env_id, step, N):
 
 
 def naive_echo(d, echo, k, u, z, sp):
-    """Echo reading of sonar k (unclamped); u, z: the copter's 40 uniforms and 20 normals."""
+    """Echo reading of sonar k (unclamped); u, z: the copter's uniforms and normals (8 and 4 per sonar)."""
     if not echo:
         return sp.max_range
+    y = d * sp.range_scale + sp.bias
     if sp.error == 0:  # none
-        return d
+        return y
     if sp.error == 1:  # gaussian
-        return d + sp.sigma * z[4 * k + 1]
+        return y + sp.sigma * z[4 * k + 1]
     R = math.sqrt(-2.0 * sp.sigma ** 2 * math.log(u[8 * k + 1]))  # Rayleigh by inversion
     s = math.sqrt((4.0 - math.pi) / 2.0) * sp.sigma
     if sp.error == 3:  # seed: the report's sign
-        return d + (R - s)
-    return d + sp.rayleigh_sign * (R - s)
+        return y + (R - s)
+    return y + sp.rayleigh_sign * (R - s)
+
+
+def naive_measured(d, echo, path, k, u, z, sp):
+    """Measured reading of sonar k: echo error, constant cross-talk (the report's d/2), geometric
+    cross-talk (first arrival of path/2 + jitter, heard with crosstalk_hear_probability), clamp."""
+    y = naive_echo(d, echo, k, u, z, sp)
+    if sp.crosstalk & 1 and u[8 * k] < sp.crosstalk_probability:
+        y = 0.5 * d
+    if sp.crosstalk & 2 and path < math.inf:
+        if sp.crosstalk_hear_probability >= 1.0 or u[8 * k + 6] < sp.crosstalk_hear_probability:
+            c = 0.5 * path + (sp.crosstalk_jitter * z[4 * k + 2] if sp.crosstalk_jitter > 0 else 0.0)
+            y = min(y, c)
+    return min(sp.max_range, max(sp.min_range, y))
 
 
 def naive_crosstalk_path(n, k, poses, slots, sp):
@@ -182,16 +196,8 @@ def naive_readings(pos, yaw, theta, arena, sp, seed, env_ids, step):
             u = uniforms_array(seed, env, step, n, STREAM_SONAR, N_UNIFORMS)
             z = normals_array(seed, env, step, n, STREAM_SONAR, N_UNIFORMS // 2)
             for k in range(4):
-                d = dist[b, n, k]
-                y = naive_echo(d, kind[b, n, k] != 0, k, u, z, sp)
-                if sp.crosstalk == 1 and u[8 * k] < sp.crosstalk_probability:  # constant: the report's d/2
-                    y = 0.5 * d
-                elif sp.crosstalk == 2:  # geometric: first arrival wins
-                    L = naive_crosstalk_path(n, k, poses, slots, sp)
-                    if L < math.inf:
-                        c = 0.5 * L + (sp.crosstalk_jitter * z[4 * k + 2] if sp.crosstalk_jitter > 0 else 0.0)
-                        y = min(y, c)
-                out[b, n, k] = min(sp.max_range, max(sp.min_range, y))
+                L = naive_crosstalk_path(n, k, poses, slots, sp) if sp.crosstalk & 2 else math.inf
+                out[b, n, k] = naive_measured(dist[b, n, k], kind[b, n, k] != 0, L, k, u, z, sp)
     return out
 
 

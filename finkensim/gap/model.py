@@ -1,0 +1,136 @@
+"""The model a diagnosis scores readings against: the simulator's own sensor records plus the knobs
+that only a diagnosis turns.
+
+:class:`ModelParams` holds the :class:`~finkensim.sensors.sonar_model.SonarModel`, the
+:class:`~finkensim.sensors.ranging.RangingModel` and the :class:`~finkensim.sensors.imu.ImuModel`
+exactly as the simulator builds them from the same config (one source of defaults and codes), plus
+the world and recording effects a log can show that the simulator does not model (tracking noise,
+wall-displacement gain, latency, ranging NLOS and dropout, constant IMU biases). Effects
+(:mod:`finkensim.gap.effects`) return modified copies; ``sensor_key`` makes the parts a sensor depends on
+hashable so that scores can be cached per sensor.
+
+The sonar reading draws call :func:`~finkensim.sensors.sonar_kernels.measured_reading`, the simulator's
+error model, with counter-based keys per (seed, flight, time, channel) and the draw index as the block:
+a refit with other parameters reuses the same random numbers.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+from numba import njit, prange
+
+from ..config import Config
+from ..kernels.rng import STREAM_EFFECT, counter_key, normal
+from ..sensors.imu import ImuModel
+from ..sensors.ranging import RangingModel
+from ..kernels.raycast import HIT_NONE
+from ..sensors.sonar_kernels import measured_reading
+from ..sensors.sonar_model import SonarModel
+
+__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_reading_draws", "gaussian_draws"]
+
+
+@dataclass(frozen=True, eq=False)
+class ModelParams:
+    """Every parameter of the predictive model (SI units).
+
+    sonar, ranging, imu: the simulator's sensor records (from the config). sigma_xy m, sigma_yaw rad:
+    tracking noise of the logged poses (``None`` = each flight's own). wall_gain: factor on the modelled
+    plate displacement (1 with bending walls, 0 with rigid ones). beam_rays: rays of a cone beam when an
+    effect widens a single-ray beam. latency_* steps: readings describe the world that many log steps
+    earlier. nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
+    copter is near the line of sight. dropout_a, dropout_b 1/m: a ranging reading is missing with
+    probability sigmoid(a + b·distance) (a = −inf: never). acc_bias_x, acc_bias_y m/s², gyro_bias rad/s:
+    constant body-frame IMU biases.
+    """
+
+    sonar: SonarModel
+    ranging: RangingModel
+    imu: ImuModel
+    sigma_xy: float | None = None
+    sigma_yaw: float | None = None
+    wall_gain: float = 1.0
+    beam_rays: int = 7
+    latency_sonar: int = 0
+    nlos_bias: float = 0.0
+    nlos_width: float = 0.2
+    dropout_a: float = -math.inf
+    dropout_b: float = 0.0
+    latency_ranging: int = 0
+    acc_bias_x: float = 0.0
+    acc_bias_y: float = 0.0
+    gyro_bias: float = 0.0
+    latency_imu: int = 0
+
+    @classmethod
+    def from_config(cls, cfg: Config) -> "ModelParams":
+        """The simulator's models of ``cfg`` (the ranging mixture file is read here) and neutral gap knobs."""
+        return cls(sonar=SonarModel.from_config(cfg), ranging=RangingModel.from_config(cfg.ranging),
+                   imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
+                   wall_gain=1.0 if cfg.walls.bending else 0.0, beam_rays=int(cfg.sonar.beam_rays))
+
+    def with_(self, **kw) -> "ModelParams":
+        """A copy with the given fields replaced."""
+        return replace(self, **kw)
+
+    def with_sonar(self, **kw) -> "ModelParams":
+        """A copy whose sonar model has the given fields replaced (``rayleigh_s`` follows ``sigma``)."""
+        if "sigma" in kw and "rayleigh_s" not in kw:
+            kw["rayleigh_s"] = math.sqrt((4.0 - math.pi) / 2.0) * float(kw["sigma"])
+        return replace(self, sonar=self.sonar._replace(**kw))
+
+    def sensor_key(self, sensor: str) -> tuple:
+        """A hashable key of everything the predictive of ``sensor`` depends on."""
+        return tuple(_hashable(getattr(self, k)) for k in SHARED_FIELDS + SENSOR_FIELDS[sensor])
+
+    def walk_density(self) -> tuple[float, float]:
+        """(accelerometer m/s²/√s, gyro rad/s/√s) bias random-walk densities of the IMU model."""
+        sq = math.sqrt(self.imu.dt)
+        return self.imu.acc_walk / sq, self.imu.gyro_walk / sq
+
+
+SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
+SENSOR_FIELDS = {
+    "ultrasonic": ("sonar", "wall_gain", "beam_rays", "latency_sonar"),
+    "ranging": ("ranging", "nlos_bias", "nlos_width", "dropout_a", "dropout_b", "latency_ranging"),
+    "imu": ("imu", "acc_bias_x", "acc_bias_y", "gyro_bias", "latency_imu"),
+}
+assert {f.name for f in fields(ModelParams)} == set(SHARED_FIELDS).union(*SENSOR_FIELDS.values())
+
+
+def _hashable(v):
+    """v as a hashable value: arrays by dtype, shape and bytes; records field by field; RangingModel by its
+    mode, ranges and mixture (by identity: it is loaded once per config)."""
+    if isinstance(v, np.ndarray):
+        return (v.dtype.str, v.shape, v.tobytes())
+    if isinstance(v, RangingModel):
+        return ("RangingModel", v.error, v.max_range, v.sigma, v.seed_variance_factor, id(v.mixture))
+    if isinstance(v, tuple):
+        return tuple(_hashable(x) for x in v)
+    return v
+
+
+@njit(cache=True, parallel=True)
+def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, out):
+    """Reading draws out (n, M) m from ideal draws dist (n, M) m, kind (n, M) (HIT_*), xtalk (n, M) m
+    (cross-talk path, inf if none) with the simulator's error model ``sp`` (a SonarModel).
+
+    Row i draws from ``counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)``, draw m from block m.
+    """
+    n, M = dist.shape
+    for i in prange(n):
+        key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
+        for m in range(M):
+            out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sp)
+
+
+@njit(cache=True, parallel=True)
+def gaussian_draws(ideal, flight, tidx, chan, seed, sd, bias, out):
+    """Draws out (n, M) = ideal (n, M) + bias (n,) + sd (n,)·N(0, 1), keyed like :func:`sonar_reading_draws`."""
+    n, M = ideal.shape
+    for i in prange(n):
+        key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
+        for m in range(M):
+            out[i, m] = ideal[i, m] + bias[i] + sd[i] * normal(key, m)

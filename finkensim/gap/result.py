@@ -1,0 +1,108 @@
+"""The result of a diagnosis: :class:`GapReport` (the spec's fields, ``spec/gap-report.md``) with its
+:class:`GapDetails` (what the Markdown report and the figures add for people).
+
+``report.to_spec()`` is the JSON document of the spec, to the letter; ``report.write(out)`` writes it as
+``report.json`` beside ``report.md`` and the figures. ``report["verdict"]`` etc. read the spec fields.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["SPEC_KEYS", "FORMAT", "GapDetails", "GapReport", "json_safe"]
+
+FORMAT = "finkensim-gap-report/1"
+SPEC_KEYS = ("format", "flights", "score", "gap_before", "locations", "effects", "verdict")
+
+
+def json_safe(x):
+    """JSON-safe copy: NaN/inf → None, NumPy scalars → Python, tuples → lists."""
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(float(x)) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+@dataclass
+class GapDetails:
+    """What a diagnosis found beyond the spec's fields.
+
+    gap_before_ci (2,), gap_before_p: bootstrap CI and p-value of the held-out gap; score_before: mean
+    held-out score of the configured model; per_sensor: sensor → {gap, ci, p, significant}; gap_sensors:
+    the sensors with a significant gap; waterfall: the forward-selection steps ({step, effect, gap_heldout,
+    ci, params}); added: the effects selected in order; total_shrink: 1 − gap after all added / gap before
+    on the gap sensors; ties: effects within ``tie_tolerance`` of the best; significant_locations: indices
+    into ``locations``; scales: sensor → score scale; sensors, n_readings: what was compared; seconds:
+    wall time; block_seconds: bootstrap block length (s); catch_all: catch-all effects among the
+    candidates; tie_tolerance, unexplained_shrink: the settings used.
+    """
+
+    gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
+    gap_before_p: float = math.nan
+    score_before: float = math.nan
+    per_sensor: dict = field(default_factory=dict)
+    gap_sensors: list = field(default_factory=list)
+    waterfall: list = field(default_factory=list)
+    added: list = field(default_factory=list)
+    total_shrink: float = 0.0
+    ties: list = field(default_factory=list)
+    significant_locations: list = field(default_factory=list)
+    scales: dict = field(default_factory=dict)
+    sensors: list = field(default_factory=list)
+    n_readings: dict = field(default_factory=dict)
+    seconds: float = math.nan
+    block_seconds: float = math.nan
+    catch_all: list = field(default_factory=list)
+    tie_tolerance: float = 0.1
+    unexplained_shrink: float = 0.7
+
+
+@dataclass
+class GapReport:
+    """A sim-to-real gap report: the spec's fields (``spec/gap-report.md``) and :class:`GapDetails`.
+
+    flights: {"train": [...], "heldout": [...]}; score: the score's name; gap_before: mean held-out gap of
+    the configured model; locations: ranked bins ({sensor, channel, feature, low, high, gap, ci, n});
+    effects: every candidate's fit ({name, params, score_heldout, gap_after_train, gap_after_heldout,
+    shrink_heldout}); verdict: {effect, shrink_heldout, unexplained, significant_gap}.
+    """
+
+    flights: dict
+    score: str
+    gap_before: float
+    locations: list
+    effects: list
+    verdict: dict
+    details: GapDetails = field(default_factory=GapDetails)
+    format: str = FORMAT
+
+    def __getitem__(self, key: str):
+        """The spec field ``key`` (``report["verdict"]``), as in the JSON document."""
+        if key not in SPEC_KEYS:
+            raise KeyError(f"{key!r} is not a gap-report field; fields: {', '.join(SPEC_KEYS)} (details: .details)")
+        return getattr(self, key)
+
+    def to_spec(self) -> dict:
+        """The JSON document of ``spec/gap-report.md``: exactly its keys, JSON-safe (non-finite → null)."""
+        return json_safe({k: getattr(self, k) for k in SPEC_KEYS})
+
+    def to_json(self) -> str:
+        """:meth:`to_spec` as JSON text (strict: no NaN)."""
+        return json.dumps(self.to_spec(), indent=1, allow_nan=False) + "\n"
+
+    def write(self, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
+        """Write report.json, report.md and the figures into directory ``out``; returns the written paths."""
+        from .report import write_report
+
+        return write_report(self, out, max_locations_md)

@@ -1,0 +1,88 @@
+"""The shape of the code base, kept so: small modules, kernels that take records instead of dozens of
+loose arrays, no reaching into another module's private names, and the layering of docs/architecture.md."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "finkensim"
+SOURCES = sorted(PACKAGE.rglob("*.py"))
+MAX_LINES = 500
+MAX_PARAMS = 16
+
+
+def _tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(), filename=str(path))
+
+
+def _rel(path: Path) -> str:
+    return str(path.relative_to(PACKAGE.parent))
+
+
+def test_modules_are_small():
+    long = {_rel(p): n for p in SOURCES if (n := len(p.read_text().splitlines())) > MAX_LINES}
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+def test_functions_take_at_most_16_parameters():
+    wide = []
+    for p in SOURCES:
+        for node in ast.walk(_tree(p)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+                if n > MAX_PARAMS:
+                    wide.append(f"{_rel(p)}:{node.lineno} {node.name} ({n})")
+    assert not wide, f"functions with more than {MAX_PARAMS} parameters: {wide}"
+
+
+def test_no_module_imports_another_modules_private_names():
+    bad = []
+    for p in SOURCES:
+        for node in ast.walk(_tree(p)):
+            if isinstance(node, ast.ImportFrom) and node.module is not None or isinstance(node, ast.ImportFrom) and node.level:
+                for alias in node.names:
+                    if alias.name.startswith("_") and not alias.name.startswith("__"):
+                        bad.append(f"{_rel(p)}:{node.lineno} {alias.name}")
+    assert not bad, f"private names imported across modules: {bad}"
+
+
+# lower layers never import upper ones (docs/architecture.md, "Layers")
+LAYERS = [
+    ("config", "arrays", "kernels"),
+    ("arena", "copters", "sensors"),
+    ("world", "behaviours"),
+    ("swarm",),
+    ("flightlog", "metrics", "analysis", "default_scenario"),
+    ("scenario", "episode", "checks", "viz"),
+    ("sweep", "gap"),
+    ("cli",),
+]
+_LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}
+
+
+def _top(module: str) -> str:
+    return module.split(".")[0]
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=_rel)
+def test_imports_follow_the_layers(path):
+    rel = path.relative_to(PACKAGE)
+    here = _top(str(rel.with_suffix("")).replace("/", "."))
+    if here not in _LEVEL:
+        return  # __init__ and modules outside the layer map
+    for node in ast.walk(_tree(path)):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level == 0 and (node.module or "").startswith("finkensim."):
+            target = _top(node.module[len("finkensim."):])
+        elif node.level == 1 and len(rel.parts) == 1 and node.module:
+            target = _top(node.module)
+        elif node.level == 2 and node.module:
+            target = _top(node.module)
+        else:
+            continue
+        if target in _LEVEL and target != here:
+            assert _LEVEL[target] <= _LEVEL[here], f"{rel}:{node.lineno} imports {target} from a lower layer ({here})"
