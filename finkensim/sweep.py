@@ -92,7 +92,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 import numpy as np
 
 from . import __version__
-from .config import SECTIONS, Config, ConfigError, _check_key
+from .config import SECTIONS, Config, ConfigError, check_key
 from .episode import check_runnable, run_episode
 from .metrics import METRICS, check_metric_names
 from .scenario import load_scenario
@@ -193,7 +193,7 @@ class _Parser:
         if not name or "." in name:
             raise self.error(f"[{table}] {key!r}: expected a dotted config key 'section.key' (e.g. 'copters.n') or 'profile'")
         try:
-            _check_key(section, name)
+            check_key(section, name)
         except ConfigError as exc:
             raise self.error(f"[{table}] {exc}") from None
         if key in RESERVED_KEYS:
@@ -489,7 +489,7 @@ class Sweep:
                     raise p.error(f"[base] {key} = {value!r}: expected a table [base.{key}]")
                 for k, v in value.items():
                     try:
-                        _check_key(key, k)
+                        check_key(key, k)
                     except ConfigError as exc:
                         raise p.error(f"[base] {exc}") from None
                     inline[f"{key}.{k}"] = v
