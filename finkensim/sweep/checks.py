@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
 from typing import Any, Callable, Iterable, Mapping
 
 from ..config import SECTIONS, Config, ConfigError, check_key
@@ -35,6 +36,11 @@ def _field(key: str):
     return {f.name: f for f in dataclasses.fields(SECTIONS[section])}[name]
 
 
+def is_duration(v) -> bool:
+    """Whether ``v`` is a valid episode duration: a finite number of seconds > 0."""
+    return is_number(v) and math.isfinite(v) and v > 0
+
+
 def field_kind(key: str) -> str:
     """The type name of a checked dotted config key's values: "int", "float", "bool", "str" or "tuple"."""
     if key == "profile":
@@ -58,6 +64,7 @@ class Parser:
         self.source = source
 
     def error(self, message: str) -> SweepError:
+        """A SweepError (to raise) of ``message`` prefixed by the sweep's source name."""
         return SweepError(f"{self.source}: {message}")
 
     def check_key(self, table: str, key: str) -> str:

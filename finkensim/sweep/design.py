@@ -7,7 +7,6 @@ The sweep file format is in :mod:`finkensim.sweep.sweepfile`; run numbering and 
 from __future__ import annotations
 
 import itertools
-import math
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -15,7 +14,7 @@ from ..config import Config, ConfigError
 from ..episode import check_runnable
 from ..metrics import METRICS, check_metric_names
 from ..scenario import load_scenario
-from .checks import Parser, SweepError, config_value, is_number
+from .checks import Parser, SweepError, config_value, is_duration
 from .keys import DEFAULT_REPLICATES, Run, content_hash, format_params, format_value, seed_for
 from .sweepfile import read_sweep_toml, sweep_arguments
 from .tables import RESULT_COLUMNS
@@ -64,7 +63,7 @@ class Sweep:
         try:
             base_cfg = load_scenario(base)
             if duration is not None:
-                if not is_number(duration) or not math.isfinite(duration) or duration <= 0:
+                if not is_duration(duration):
                     raise SweepError(f"duration = {duration!r}: expected a number of seconds > 0")
                 base_cfg = base_cfg.replace({"simulation.duration": float(duration)})
         except SweepError as exc:

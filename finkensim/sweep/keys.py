@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-DEFAULT_REPLICATES = 20
+DEFAULT_REPLICATES = 20  # seeds per parameter combination
 SEED_TAG_RUN = 1     # SeedSequence([seed, 1, k, r]) -> run seeds
 SEED_TAG_DESIGN = 2  # SeedSequence([seed, 2]) -> random design samples
 

@@ -11,8 +11,7 @@ from typing import Any, Callable, Iterator, Mapping
 from .checks import SweepError
 from .design import Sweep
 from .executors import check_executor, dask_client, run_dask, run_process, run_serial
-from .store import prepare_out, read_parts, write_atomic, write_part
-from .summary import plot_summary, summarize
+from .store import prepare_out, read_parts, write_outputs, write_part
 from .tables import arrow_schema, result_row
 
 
@@ -117,15 +116,7 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
     table = pa.Table.from_pylist([rows[k] for k in sorted(rows)], schema=schema)
     df = table.to_pandas()
     if out_dir is not None:
-        import pyarrow.parquet as pq
-
-        write_atomic(out_dir / "results.parquet", lambda p: pq.write_table(table, p))
-        summary = summarize(df, sweep.parameters, sweep.metrics)
-        write_atomic(out_dir / "summary.csv", lambda p: summary.to_csv(p, index=False))
-        fig = plot_summary(summary, sweep.parameters, sweep.metrics)
-        from ..viz import save_png  # a 256-colour palette PNG: the same picture at about a third of the size
-
-        write_atomic(out_dir / "summary.png", lambda p: save_png(fig, p, dpi=110))
+        write_outputs(out_dir, sweep, table, df)
     df.attrs["ran"] = sorted(ran)
     df.attrs["failed"] = [int(i) for i in df.loc[df["status"] != "ok", "run_id"]]
     df.attrs["out"] = str(out_dir) if out_dir is not None else None

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 from .. import __version__
 from .checks import SweepError
+from .summary import plot_summary, summarize
 from .tables import column_value
 
 if TYPE_CHECKING:
@@ -107,6 +108,20 @@ def prepare_out(out: Path, sweep: Sweep, resume: bool, overwrite: bool) -> None:
         write_atomic(meta, lambda p: p.write_text(json.dumps(info, indent=1, default=str)))
     except OSError as exc:
         raise SweepError(f"cannot write to output directory {str(out)!r}: {exc.strerror or exc}") from None
+
+
+def write_outputs(out: Path, sweep: Sweep, table, results) -> None:
+    """Write ``results.parquet`` (the pyarrow ``table``), then ``summary.csv`` and ``summary.png`` (from the
+    same table as the DataFrame ``results``) into ``out``, each atomically."""
+    import pyarrow.parquet as pq
+
+    write_atomic(out / "results.parquet", lambda p: pq.write_table(table, p))
+    summary = summarize(results, sweep.parameters, sweep.metrics)
+    write_atomic(out / "summary.csv", lambda p: summary.to_csv(p, index=False))
+    fig = plot_summary(summary, sweep.parameters, sweep.metrics)
+    from ..viz import save_png  # a 256-colour palette PNG: the same picture at about a third of the size
+
+    write_atomic(out / "summary.png", lambda p: save_png(fig, p, dpi=110))
 
 
 def load_results(out: str | Path):

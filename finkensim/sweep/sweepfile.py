@@ -61,7 +61,7 @@ import numpy as np
 from ..config import SECTIONS, Config, ConfigError, check_key
 from ..metrics import METRICS
 from ..scenario import load_scenario
-from .checks import Parser, SweepError, field_kind, is_number, suggest
+from .checks import Parser, SweepError, field_kind, is_duration, is_number, suggest
 from .keys import DEFAULT_REPLICATES, SEED_TAG_DESIGN
 
 if sys.version_info >= (3, 11):
@@ -128,7 +128,7 @@ def sweep_arguments(data: Mapping[str, Any], base_dir: str | Path | None = None,
     if metrics is not None and (not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics)):
         raise p.error(f"metrics = {metrics!r}: expected a list of metric names ({', '.join(METRICS)})")
     duration = data.get("duration")
-    if duration is not None and (not is_number(duration) or not math.isfinite(duration) or duration <= 0):
+    if duration is not None and not is_duration(duration):
         raise p.error(f"duration = {duration!r}: expected a number of seconds > 0")
 
     base = base_from_table(p, data.get("base", {}), base_dir)
