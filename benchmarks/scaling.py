@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from finkensim.kernels.cellgrid import build_env, grid_spec, neighbour_counts, query_env, raycast_fan_env
+from benchmarks.cellgrid import build_env, grid_spec, neighbour_counts, query_env, raycast_fan_env
 from finkensim.kernels.geometry import ray_circle
 
 AREA_PER_COPTER = 2.0  # m² per copter

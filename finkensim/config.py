@@ -390,12 +390,17 @@ class Config:
             section, _, key = dotted.partition(".")
             if not key:
                 raise ConfigError(f"{dotted!r}: expected a dotted key 'section.key'")
-            _check_key(section, key)
+            check_key(section, key)
             data[section][key] = value
         return config_from_dict(data, _explicit=True)
 
 
-def _check_key(section: str, key: str | None = None) -> None:
+def check_key(section: str, key: str | None = None) -> None:
+    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting.
+
+    Raises:
+        ConfigError: for an unknown section or key, with a close-match suggestion and the allowed names.
+    """
     if section not in SECTIONS:
         hint = difflib.get_close_matches(section, list(SECTIONS) + ["profile"], n=1)
         extra = f" (did you mean {hint[0]!r}?)" if hint else ""
@@ -420,11 +425,11 @@ def config_from_dict(data: Mapping[str, Any], _explicit: bool = False) -> Config
     for name, values in data.items():
         if name == "profile":
             continue
-        _check_key(name)
+        check_key(name)
         if not isinstance(values, Mapping):
             raise ConfigError(f"[{name}] = {values!r}: expected a table of keys")
         for key in values:
-            _check_key(name, key)
+            check_key(name, key)
         merged = {**PROFILES[profile].get(name, {}), **values} if not _explicit else dict(values)
         sections[name] = SECTIONS[name](**merged)
     return Config(profile, **sections)

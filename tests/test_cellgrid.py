@@ -1,4 +1,4 @@
-"""Cell grid (finkensim.kernels.cellgrid): neighbour queries and raycasts == brute force.
+"""Cell grid (benchmarks/cellgrid.py): neighbour queries and raycasts == brute force.
 
 The brute-force references are plain NumPy written from the definitions: a copter j is a neighbour
 of i when (x_j − x_i)² + (y_j − y_i)² ≤ r² (the same formula and operand order as the kernel, so
@@ -14,7 +14,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from finkensim.kernels import cellgrid as cg
+from benchmarks import cellgrid as cg
 from tests.naive import geometry as naive
 
 

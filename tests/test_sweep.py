@@ -12,11 +12,12 @@ import pytest
 from PIL import Image
 from scipy import stats
 
-import finkensim.sweep as sweep_mod
+import finkensim.sweep.executors as executors_mod
 from finkensim.cli import main
 from finkensim.config import ConfigError
 from finkensim.episode import _swarm_module, run_episode
-from finkensim.sweep import Sweep, SweepError, run_sweep, summarize
+from finkensim.sweep import Sweep, SweepError, plot_summary, run_sweep, summarize
+from finkensim.sweep.summary import factorial_layout
 
 # tiny episodes: 2-3 copters x 1 s
 SWEEP_TOML = """\
@@ -221,7 +222,7 @@ def test_bad_random_designs_fail_with_a_named_error(spec, message):
 def test_sweep_error_is_a_config_error_and_nothing_runs(tmp_path, monkeypatch):
     assert issubclass(SweepError, ConfigError)
     calls = []
-    monkeypatch.setattr(sweep_mod, "_execute", lambda task: calls.append(task))
+    monkeypatch.setattr(executors_mod, "execute", lambda task: calls.append(task))
     bad = tmp_path / "bad.toml"
     bad.write_text(SWEEP_TOML.replace("[2, 3]", "[2, -1]"))
     with pytest.raises(SweepError):
@@ -347,15 +348,15 @@ def test_summary_plot_groups_a_factorial_design_by_its_last_parameter():
     sw = Sweep.from_toml(VARIANTS_TOML)
     summary = pd.DataFrame([{**c, "combination": k, "cohesion_mean": 1.0 + k, "cohesion_ci_low": 0.5 + k,
                              "cohesion_ci_high": 1.5 + k} for k, c in enumerate(sw.combinations)])
-    groups, series = sweep_mod._factorial_layout(summary, sw.parameters)
+    groups, series = factorial_layout(summary, sw.parameters)
     assert groups == [("still",), ("slow",), ("fast",)] and series == [2, 3]
-    fig = sweep_mod.plot_summary(summary, sw.parameters, ["cohesion"])
+    fig = plot_summary(summary, sw.parameters, ["cohesion"])
     ax = fig.axes[0]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["still", "slow", "fast"]
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["2", "3"]
     # not a full factorial (or one parameter): one point per combination along x
-    assert sweep_mod._factorial_layout(summary.iloc[:5], sw.parameters) is None
-    assert sweep_mod._factorial_layout(summary, ["motion"]) is None
+    assert factorial_layout(summary.iloc[:5], sw.parameters) is None
+    assert factorial_layout(summary, ["motion"]) is None
 
 
 # --------------------------------------------------------------------------- executors
@@ -503,7 +504,7 @@ def _flaky_episode(cfg, seed, env_id=0, metrics=None):
 
 
 def test_cli_reports_failed_runs_with_exit_code_1(sweep_file, tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(sweep_mod, "run_episode", _flaky_episode)  # serial: runs in this process
+    monkeypatch.setattr(executors_mod, "run_episode", _flaky_episode)  # serial: runs in this process
     out = tmp_path / "cli"
     code = main(["sweep", str(sweep_file), "--out", str(out), "--executor", "serial", "--no-progress"])
     err = capsys.readouterr().err

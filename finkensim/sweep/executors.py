@@ -1,0 +1,181 @@
+"""Executors of a sweep's runs: serially in this process, on a local process pool, or on a Dask cluster.
+
+Each executor takes a list of tasks (see :func:`execute`) and yields one result dict per task, in
+order of completion. A run that raises is a result with status "error"; a worker that dies gives a
+"lost" result (``_no_part``: no part is written, so ``resume`` retries the run).
+"""
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Iterator, Mapping
+
+from ..episode import run_episode
+from .checks import SweepError, suggest
+
+EXECUTORS = ("serial", "process", "dask")
+
+
+def check_executor(executor: str, scheduler: str | None) -> str:
+    """``executor`` if it is one of :data:`EXECUTORS` and ``scheduler`` (an address) is only given with "dask"."""
+    if executor not in EXECUTORS:
+        raise SweepError(f"executor = {executor!r}: expected one of {', '.join(map(repr, EXECUTORS))}"
+                         f"{suggest(executor, EXECUTORS)}")
+    if scheduler and executor != "dask":
+        raise SweepError(f"scheduler = {scheduler!r} needs executor 'dask', got {executor!r}")
+    return executor
+
+
+_THREADS_LIMITED = False
+
+
+def _limit_threads() -> None:
+    """One numba thread per worker process: each run is a single environment, parallelism is across runs."""
+    global _THREADS_LIMITED
+    if not _THREADS_LIMITED:
+        try:
+            import numba
+
+            numba.set_num_threads(1)
+        except Exception:  # pragma: no cover - best effort
+            pass
+        _THREADS_LIMITED = True
+
+
+def _worker_init() -> None:
+    """Initializer of a pool worker process."""
+    _limit_threads()
+
+
+def execute(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Run one task in a worker: build its config, call the runner, catch its exception. Top-level (picklable).
+
+    A task is a dict: run_id, config (``Config.to_dict()``), seed, metrics (names), runner (None:
+    :func:`~finkensim.episode.run_episode`), single_thread (limit numba to one thread). The result is a
+    dict: run_id, one float per metric (NaN on error), status ("ok" / "error"), error (text), elapsed (s).
+    """
+    from ..config import config_from_dict
+
+    if task.get("single_thread"):
+        _limit_threads()
+    names = task["metrics"]
+    out: dict[str, Any] = {"run_id": task["run_id"]}
+    t0 = time.perf_counter()
+    try:
+        cfg = config_from_dict(task["config"])
+        runner = task.get("runner")
+        if runner is None:
+            values = run_episode(cfg, task["seed"], 0, names)
+        else:
+            values = runner(cfg, task["seed"], 0)
+        missing = [m for m in names if m not in values]
+        if missing:
+            raise KeyError(f"the runner returned no value for metric(s) {', '.join(missing)}")
+        out.update({m: float(values[m]) for m in names})
+        out["status"], out["error"] = "ok", ""
+    except Exception as exc:  # a failing run is a result, not a crash of the sweep
+        out.update({m: math.nan for m in names})
+        out["status"], out["error"] = "error", f"{type(exc).__name__}: {exc}"
+    out["elapsed"] = time.perf_counter() - t0
+    return out
+
+
+def _lost(task, exc: BaseException) -> dict[str, Any]:
+    """Row of a run whose worker failed (no result came back); it gets no part, so resume retries it."""
+    row = {"run_id": task["run_id"], **{m: math.nan for m in task["metrics"]}, "status": "error",
+           "error": f"{type(exc).__name__}: {exc} (the worker failed; the run is retried by resume)",
+           "elapsed": math.nan, "_no_part": True}
+    return row
+
+
+def run_serial(tasks: list[dict]) -> Iterator[dict]:
+    """The results of ``tasks`` (see :func:`execute`), run one after another in this process."""
+    for task in tasks:
+        yield execute(task)
+
+
+def run_process(tasks: list[dict], workers: int) -> Iterator[dict]:
+    """The results of ``tasks`` in order of completion, from a pool of ``workers`` spawned processes
+    (at most 4 tasks per worker in flight); closing the iterator shuts the pool down."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    # spawn: numba's OpenMP threads make fork unsafe; the workers import finkensim afresh
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_worker_init)
+    pending: dict = {}
+    todo = iter(tasks)
+    try:
+        def fill():
+            while len(pending) < 4 * workers:
+                task = next(todo, None)
+                if task is None:
+                    return
+                pending[pool.submit(execute, task)] = task
+
+        fill()
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                task = pending.pop(fut)
+                exc = fut.exception()
+                yield _lost(task, exc) if exc is not None else fut.result()
+            fill()
+    finally:
+        pool.shutdown(wait=not pending, cancel_futures=True)
+
+
+def dask_client(workers: int, scheduler: str | None):
+    """(client, cluster): a Dask client of the scheduler at ``scheduler`` (cluster None), or of a new
+    LocalCluster of ``workers`` single-threaded processes. SweepError when dask.distributed is missing
+    or the scheduler cannot be reached."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise SweepError("executor 'dask' needs dask.distributed: pip install 'finkensim[dask]'") from None
+    import logging
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_dask(tasks: list[dict], workers: int, client) -> Iterator[dict]:
+    """The results of ``tasks`` in order of completion, run on the Dask ``client`` (at most 4 tasks per
+    worker in flight); a failed future gives a lost-run row; closing the iterator cancels the rest."""
+    from distributed import as_completed
+
+    n_inflight = 4 * max(1, len(client.scheduler_info().get("workers", {})) or workers)
+    pending: dict = {}
+    todo = iter(tasks)
+    ac = as_completed()
+    try:
+        def fill():
+            while len(pending) < n_inflight:
+                task = next(todo, None)
+                if task is None:
+                    return
+                fut = client.submit(execute, task, pure=False)
+                pending[fut] = task
+                ac.add(fut)
+
+        fill()
+        for fut in ac:
+            task = pending.pop(fut)
+            if fut.status == "finished":
+                yield fut.result()
+            else:
+                try:
+                    exc = fut.exception()
+                except Exception as e:  # pragma: no cover - cancelled futures
+                    exc = e
+                yield _lost(task, exc)
+            fill()
+    finally:
+        for fut in pending:
+            fut.cancel()
