@@ -211,4 +211,3 @@ class FlightLog:
         return self.equals(other)
 
     __hash__ = None  # mutable arrays inside
-
