@@ -137,6 +137,7 @@ def cmd_run(args) -> int:
     import matplotlib.pyplot as plt
 
     from . import viz
+    from .analysis import peak_deflection_index
 
     written: list[tuple[str, Path, str]] = []
     try:
@@ -144,7 +145,7 @@ def cmd_run(args) -> int:
         save(log, path)
         written.append(("flight log", path, f"{log.n_steps} x {log.n_copters} poses"))
 
-        k = viz.peak_deflection_index(traj)
+        k = peak_deflection_index(traj)
         k0 = max(0, k - int(round(ARENA_TRAIL_SECONDS / sim.dt)))
         fig, _ = viz.plot_arena(world, traj.pose[k, 0, :, :2], traj.pose[k, 0, :, 2], traj.theta[k, 0],
                                 trails=traj.pose[k0:k + 1, 0], t=float(traj.t[k]),

@@ -148,6 +148,7 @@ def test_plot_sensors_skips_missing_blocks():
     import matplotlib.pyplot as plt
 
     from finkensim import viz
+    from finkensim.analysis import sonar_crosstalk_events
 
     log, _, _ = simulate_flight(None, duration=1.0, seed=3, ideal=True)
 
@@ -169,7 +170,7 @@ def test_plot_sensors_skips_missing_blocks():
         fig, axes = viz.plot_sensors(case, copter=1)
         assert set(axes) == panels
         plt.close(fig)
-    events = viz.sonar_crosstalk_events(log)
+    events = sonar_crosstalk_events(log)
     assert events.shape == log.ultrasonic.shape and events.dtype == bool
     with pytest.raises(ValueError, match="no sensor blocks"):
         viz.plot_sensors(without(**no_sonar, **no_imu, ranging=None))

@@ -1,0 +1,125 @@
+"""Flight-log files: :func:`save` and :func:`load` a :class:`~finkensim.flightlog.format.FlightLog`
+as a compressed NumPy ``.npz`` archive of named arrays (no pickles; format ``finkensim-flightlog/1``).
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .encoding import as_text, meta_from_json, meta_to_json
+from .format import FORMAT, OPTIONAL, REQUIRED, STANDARD, FlightLog, FlightLogError
+from .validation import validate as validate_log  # load() has a parameter called validate
+
+__all__ = ["save", "load"]
+
+
+def _with_file(path, exc: FlightLogError) -> FlightLogError:
+    return FlightLogError(f"flight log {str(path)!r}: {exc}")
+
+
+def save(log: FlightLog, path: str | os.PathLike, *, check_units: bool = True) -> None:
+    """Validate ``log`` and write it to ``path`` as a compressed ``.npz`` (no pickles).
+
+    The file is written exactly at ``path`` (no ``.npz`` suffix is appended) via a temporary
+    file in the same directory, so a failed save leaves no partial file. Numeric arrays are
+    stored as float64, ``format`` and ``meta`` as 0-d str arrays, ``copter_ids`` as a unicode
+    str array, extras unchanged.
+    """
+    validate_log(log, check_units=check_units)
+    arrays: dict[str, np.ndarray] = {"format": np.array(FORMAT)}
+    for name in REQUIRED + OPTIONAL:
+        v = getattr(log, name)
+        if v is None:
+            continue
+        if name == "copter_ids":
+            arrays[name] = np.asarray(as_text(name, v, scalar=False)).astype(str)
+        else:
+            arrays[name] = np.asarray(v, dtype=np.float64)
+    arrays["meta"] = np.array(meta_to_json(log.meta))
+    for k, v in log.extras.items():
+        arrays[k] = np.asarray(v)
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        with open(tmp, "xb") as f:  # plain open: the file gets the usual umask permissions
+            np.savez_compressed(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = True) -> FlightLog:
+    """Read a flight log ``.npz`` (``allow_pickle=False``) and, by default, :func:`validate` it.
+
+    A missing or unreadable file, a file that is not an ``.npz`` archive, an object (pickled)
+    array, a wrong or missing ``format``, missing required arrays or a ``meta`` that is not a
+    JSON object always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
+    only the content checks of :func:`validate`. Numeric arrays are returned as float64;
+    arrays the format does not name go to ``extras``.
+    """
+    do_validate = validate
+    p = Path(path)
+    if not p.exists():
+        raise FlightLogError(f"flight log {str(p)!r}: file does not exist")
+    try:
+        npz = np.load(p, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise FlightLogError(f"flight log {str(p)!r}: cannot be read as a NumPy .npz archive ({exc})") from None
+    if not isinstance(npz, np.lib.npyio.NpzFile):
+        raise FlightLogError(f"flight log {str(p)!r}: is a single .npy array; expected an .npz archive of named arrays")
+    raw: dict[str, np.ndarray] = {}
+    with npz:
+        for key in npz.files:
+            try:
+                raw[key] = npz[key]
+            except ValueError as exc:
+                if "allow_pickle" in str(exc) or "Object arrays" in str(exc):
+                    raise FlightLogError(
+                        f"flight log {str(p)!r}: array {key!r} is an object (pickled) array; expected numbers or str, no pickles"
+                    ) from None
+                raise FlightLogError(f"flight log {str(p)!r}: array {key!r} cannot be read ({exc})") from None
+            except Exception as exc:  # corrupt member: zlib / zipfile / format errors
+                raise FlightLogError(f"flight log {str(p)!r}: array {key!r} cannot be read ({type(exc).__name__}: {exc})") from None
+
+    try:
+        if "format" not in raw:
+            raise FlightLogError(f"format is missing; expected a 0-d str array {FORMAT!r}")
+        fmt = as_text("format", raw["format"], scalar=True)
+        if fmt != FORMAT:
+            raise FlightLogError(f"format = {fmt!r}; expected exactly {FORMAT!r}")
+        missing = [n for n in REQUIRED if n not in raw]
+        if missing:
+            raise FlightLogError(
+                f"required array{'s' if len(missing) > 1 else ''} {', '.join(missing)} missing; "
+                f"a flight log needs {', '.join(REQUIRED)}"
+            )
+        meta = meta_from_json(as_text("meta", raw["meta"], scalar=True)) if "meta" in raw else {}
+        kwargs: dict[str, Any] = {}
+        for name in REQUIRED + OPTIONAL:
+            if name not in raw:
+                continue
+            a = raw[name]
+            if name == "copter_ids":
+                a = as_text(name, a, scalar=False) if a.dtype.kind in "US" else a
+            elif a.dtype.kind in "iuf":
+                a = a.astype(np.float64, copy=False)
+                if name == "ultrasonic_offset" and a.shape == ():
+                    a = float(a)
+            kwargs[name] = a
+        extras = {k: v for k, v in raw.items() if k not in STANDARD}
+        log = FlightLog(**kwargs, meta=meta, extras=extras)
+        if do_validate:
+            validate_log(log, check_units=check_units)
+    except FlightLogError as exc:
+        raise _with_file(p, exc) from None
+    return log
