@@ -36,8 +36,8 @@ CONFIGS = {
     "seed_models_geometric_round_robin": {"sonar.error": "seed", "sonar.crosstalk": "geometric",
                                           "sonar.schedule": "round_robin", "ranging.error": "seed",
                                           "ranging.seed_variance_factor": 3.0},
-    "cone_beam_random_offset_rigid": {"sonar.beam": "cone", "sonar.crosstalk": "geometric",
-                                      "sonar.schedule": "random_offset", "walls.bending": False},
+    "cone_beam_rigid_walls": {"sonar.beam": "cone", "walls.bending": False},
+    "geometric_random_offset": {"sonar.crosstalk": "geometric", "sonar.schedule": "random_offset"},
     "shifted_mixture_file": "mixture",
 }
 

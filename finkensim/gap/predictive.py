@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import Config
-from ..sensors.sonar_model import SonarModel
+from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate, sonar_channel_names, speed, wall_distance
 from .model import ModelParams, gaussian_draws, sonar_reading_draws
@@ -28,6 +28,13 @@ GEOMETRY_DRAWS = 8  # distinct pose draws per reading when the poses are noisy (
 def geometry_draws(sx: float, sy: float, M: int) -> int:
     """Pose draws needed: one when the logged poses are exact, else min(M, GEOMETRY_DRAWS)."""
     return 1 if (sx == 0.0 and sy == 0.0) else min(M, GEOMETRY_DRAWS)
+
+
+def pose_sigmas(p: ModelParams, fl, M: int) -> tuple[float, float, int]:
+    """(σ_xy m, σ_yaw rad, pose draws) of flight fl under p (``None`` sigmas: the flight's own)."""
+    sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
+    sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
+    return sx, sy, geometry_draws(sx, sy, M)
 
 
 class LRU:
@@ -150,10 +157,10 @@ class SonarTable(Table):
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         """Ideal draws (dist, kind, xtalk), each (len(u), N, S, G), at sample positions u of one flight."""
-        sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
-        sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
-        G = geometry_draws(sx, sy, M)
+        sx, sy, G = pose_sigmas(p, fl, M)
         sp = p.sonar
+        if sp.crosstalk & CROSSTALK_GEOMETRIC and sp.schedule == SCHEDULE_RANDOM_OFFSET:
+            G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
         key = ("sonar", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                sp.ray_angles.tobytes(), p.latency_sonar, sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range)
@@ -337,9 +344,7 @@ class ImuTable(Table):
         return t
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
-        sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
-        sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
-        G = geometry_draws(sx, sy, M)
+        sx, sy, G = pose_sigmas(p, fl, M)
         h = self.window
         key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), p.latency_imu, G, h)
         hit = self.cache.get(key)

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .result import SPEC_KEYS, GapReport  # noqa: F401  (SPEC_KEYS: the spec keys, re-exported)
+from .result import SPEC_KEYS, GapReport
+
+__all__ = ["SPEC_KEYS", "spec_report", "write_report", "markdown", "write_figures"]
 
 def spec_report(report: GapReport) -> dict:
     """The report reduced to the spec's keys, JSON-safe (same as ``report.to_spec()``)."""
@@ -123,39 +125,22 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
     sig = set(priv.significant_locations)
     locs = report["locations"][:15]
     if locs:
-        fig, ax = plt.subplots(figsize=(8, 0.35 * len(locs) + 1.2))
-        y = np.arange(len(locs))[::-1]
         g = np.array([loc["gap"] for loc in locs], float)
         lo = np.array([loc["ci"][0] if loc["ci"][0] is not None else np.nan for loc in locs], float)
         hi = np.array([loc["ci"][1] if loc["ci"][1] is not None else np.nan for loc in locs], float)
-        colors = ["C3" if i in sig else "0.6" for i in range(len(locs))]
-        ax.barh(y, g, color=colors)
-        ax.errorbar(g, y, xerr=[np.nan_to_num(g - lo), np.nan_to_num(hi - g)], fmt="none", ecolor="k", lw=1)
-        ax.set_yticks(y)
-        ax.set_yticklabels([f"{loc['sensor']}/{loc['channel']} {loc['feature']} [{loc['low']:.2g}, {loc['high']:.2g})"
-                            for loc in locs], fontsize=8)
-        ax.axvline(0, color="k", lw=0.8)
-        ax.set_xlabel("normalised gap per reading (95 % CI); red = significant after FDR control")
-        ax.set_title("Where the simulator disagrees with the logs")
-        fig.tight_layout()
-        paths["gap"] = out / "gap_by_condition.png"
-        fig.savefig(paths["gap"], dpi=110)
-        plt.close(fig)
+        labels = [f"{loc['sensor']}/{loc['channel']} {loc['feature']} [{loc['low']:.2g}, {loc['high']:.2g})"
+                  for loc in locs]
+        paths["gap"] = _barh(out / "gap_by_condition.png", labels, g, ["C3" if i in sig else "0.6" for i in range(len(locs))],
+                             "normalised gap per reading (95 % CI); red = significant after FDR control",
+                             "Where the simulator disagrees with the logs", width=8, fontsize=8,
+                             xerr=[np.nan_to_num(g - lo), np.nan_to_num(hi - g)])
     effs = report["effects"]
     if effs:
-        fig, ax = plt.subplots(figsize=(7, 0.35 * len(effs) + 1.2))
-        y = np.arange(len(effs))[::-1]
-        s = [e["shrink_heldout"] if e["shrink_heldout"] is not None else 0.0 for e in effs]
-        ax.barh(y, s, color=["C2" if e["name"] == report["verdict"]["effect"] else "C0" for e in effs])
-        ax.set_yticks(y)
-        ax.set_yticklabels([e["name"] for e in effs], fontsize=9)
-        ax.axvline(0, color="k", lw=0.8)
-        ax.set_xlabel("held-out gap shrink when the effect is added and fitted (1 = gap removed)")
-        ax.set_title("Candidate effects, best held-out score first")
-        fig.tight_layout()
-        paths["effects"] = out / "effects.png"
-        fig.savefig(paths["effects"], dpi=110)
-        plt.close(fig)
+        paths["effects"] = _barh(out / "effects.png", [e["name"] for e in effs],
+                                 [e["shrink_heldout"] if e["shrink_heldout"] is not None else 0.0 for e in effs],
+                                 ["C2" if e["name"] == report["verdict"]["effect"] else "C0" for e in effs],
+                                 "held-out gap shrink when the effect is added and fitted (1 = gap removed)",
+                                 "Candidate effects, best held-out score first", width=7, fontsize=9)
     wf = priv.waterfall
     if wf:
         fig, ax = plt.subplots(figsize=(6, 3.5))
@@ -175,3 +160,23 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
         fig.savefig(paths["waterfall"], dpi=110)
         plt.close(fig)
     return paths
+
+
+def _barh(path: Path, labels, values, colors, xlabel: str, title: str, width: float, fontsize: int, xerr=None) -> Path:
+    """A horizontal bar chart, first label on top, saved to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(width, 0.35 * len(labels) + 1.2))
+    y = np.arange(len(labels))[::-1]
+    ax.barh(y, values, color=colors)
+    if xerr is not None:
+        ax.errorbar(values, y, xerr=xerr, fmt="none", ecolor="k", lw=1)
+    ax.set_yticks(y)
+    ax.set_yticklabels(labels, fontsize=fontsize)
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set_xlabel(xlabel)
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

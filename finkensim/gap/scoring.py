@@ -77,24 +77,13 @@ def ensemble_terms_grouped(draws, y, period):
     return t_abs, t_pair
 
 
-@njit(cache=True, parallel=True)
 def ensemble_terms(draws, y):
-    """Per reading: (E|X − y|, E|X − X'|) from an ensemble.
+    """Per reading: (E|X − y|, E|X − X'|) from an ensemble of independent members.
 
     draws (n, M) float64 predictive draws; y (n,) observations → two (n,) arrays. Readings with
-    a non-finite observation give NaN.
+    a non-finite observation give NaN. (:func:`ensemble_terms_grouped` with every period 1.)
     """
-    n, M = draws.shape
-    t_abs = np.empty(n)
-    t_pair = np.empty(n)
-    for i in prange(n):
-        if not np.isfinite(y[i]):
-            t_abs[i] = np.nan
-            t_pair[i] = np.nan
-            continue
-        xs = np.sort(draws[i])
-        t_abs[i], t_pair[i] = _sorted_terms(xs, y[i])
-    return t_abs, t_pair
+    return ensemble_terms_grouped(draws, y, np.ones(draws.shape[0], dtype=np.int64))
 
 
 def crps_ensemble(draws, y):

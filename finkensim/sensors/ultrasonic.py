@@ -129,32 +129,21 @@ _down_env_fn = njit(cache=True)(down_env.py_func)
 
 
 @njit(cache=True, parallel=True)
-def _ideal_batch(pos, yaw, theta, g, sp, dist, kind, hit):
-    """Ideal readings of B environments; g: :class:`WallGeometry`."""
-    B, N, _ = pos.shape
-    S = g.plate_a.shape[0]
-    for b in prange(B):
-        pa = np.empty((S, 2))
-        pb = np.empty((S, 2))
-        sonar_buf = np.empty((N, sp.mount_yaw.shape[0], 4))
-        displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
-        _ideal_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, sonar_buf, dist[b], kind[b], hit[b])
-
-
-@njit(cache=True, parallel=True)
-def _readings_batch(pos, yaw, theta, g, sp, seed, env_ids, steps, dist, kind, hit, out):
+def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hit, out):
     """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] (so T×B trajectories flatten);
-    g: :class:`WallGeometry`."""
+    g: :class:`WallGeometry`. Ideal values into dist/kind/hit; with ``measure`` also the readings into out."""
     B, N, _ = pos.shape
     S = g.plate_a.shape[0]
     for b in prange(B):
         pa = np.empty((S, 2))
         pb = np.empty((S, 2))
         sonar_buf = np.empty((N, sp.mount_yaw.shape[0], 4))
-        slot = np.zeros(N, dtype=np.int64)
         displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
-        _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b], sonar_buf,
-                           dist[b], kind[b], hit[b], slot, out[b])
+        if measure:
+            _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b], sonar_buf,
+                               dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64), out[b])
+        else:
+            _ideal_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, sonar_buf, dist[b], kind[b], hit[b])
 
 
 @njit(cache=True, parallel=True)
@@ -223,7 +212,8 @@ def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
     dist = np.empty((B, N, S_))
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
-    _ideal_batch(pos, yaw, theta, g, sp, dist, kind, hit)
+    none = np.zeros(B, dtype=np.int64)
+    _batch(pos, yaw, theta, g, sp, 0, none, none, False, dist, kind, hit, np.empty((B, N, S_)))
     return dist, kind, hit
 
 
@@ -248,8 +238,7 @@ def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, e
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
     out = np.empty((B, N, S_))
-    _readings_batch(pos, yaw, theta, g, sp, int(seed),
-                    env_ids, steps, dist, kind, hit, out)
+    _batch(pos, yaw, theta, g, sp, int(seed), env_ids, steps, True, dist, kind, hit, out)
     if return_ideal:
         return out, dist, kind, hit
     return out
@@ -319,8 +308,7 @@ def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_i
     kind = np.empty((T * B, N, S_), dtype=np.int64)
     hit = np.empty((T * B, N, S_, 2))
     out = np.empty((T * B, N, S_))
-    _readings_batch(pos, yaw, th, g, sp, int(seed),
-                    ids, steps, dist, kind, hit, out)
+    _batch(pos, yaw, th, g, sp, int(seed), ids, steps, True, dist, kind, hit, out)
     out = out.reshape(T, B, N, S_)
     if return_ideal:
         return (out, dist.reshape(T, B, N, S_), kind.reshape(T, B, N, S_),

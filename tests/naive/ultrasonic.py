@@ -172,7 +172,7 @@ def naive_crosstalk_path(n, k, poses, slots, sp):
             continue
         for j in range(4):
             w = poses[m, j, :2] - r
-            L = math.hypot(w[0], w[1])
+            L = math.sqrt(w[0] * w[0] + w[1] * w[1])  # the kernel's arithmetic: cone-edge cases agree
             if L == 0.0 or L > 2.0 * sp.max_range:
                 continue
             in_receiver_cone = u[0] * w[0] + u[1] * w[1] >= ch * L
