@@ -9,7 +9,7 @@ SRC_HASH := $(shell cat $$(find finkensim -name '*.py' | sort) | sha1sum | cut -
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(SRC_HASH)
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test bench bench-peers clean venv
+.PHONY: demo test notebooks bench bench-peers clean venv
 
 venv: $(STAMP)
 
@@ -24,6 +24,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q tests --nbmake notebooks
+
+# re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
+notebooks: $(STAMP)
+	$(BIN)/python -m pytest -q --nbmake --overwrite notebooks
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run $(if $(QUICK),--quick,)

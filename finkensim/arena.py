@@ -122,6 +122,19 @@ def hinge_substeps(theta, omega, integ, target, active, hp, dt):
 
 
 @njit(cache=True, inline="always")
+def _advance_stopped(th, om, h, half_pi):
+    """(θ + ω·h, ω) with θ stopped at ±π/2 (the plate lies flat): ω is then cut to what moves it back."""
+    th += om * h
+    if th > half_pi:
+        th = half_pi
+        om = min(om, 0.0)
+    elif th < -half_pi:
+        th = -half_pi
+        om = max(om, 0.0)
+    return th, om
+
+
+@njit(cache=True, inline="always")
 def contact_angle(d, lever):
     """Largest angle (rad) at which the plate surface at flight height (moved lever·sin θ inward)
     still clears a copter body d (m) away from the rest line: asin(min(1, d / lever))."""
@@ -199,30 +212,14 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
             tau = min(jf, max(-jf, tau))
             acc = (tau - hp.gravity_torque * np.sin(th)) / hp.inertia
             om += acc * h
-            th += om * h
-            if th > half_pi:
-                th = half_pi
-                om = min(om, 0.0)
-            elif th < -half_pi:
-                th = -half_pi
-                om = max(om, 0.0)
-            theta[s] = th
-            omega[s] = om
+            theta[s], omega[s] = _advance_stopped(th, om, h, half_pi)
             integ[s] = ig
         for q in range(n_on, n_on + n_off):
             s = order[q]
             th = theta[s]
             # viscous friction integrated implicitly: stable for any friction / inertia ratio
             om = (omega[s] - hp.gravity_torque * np.sin(th) / hp.inertia * h) / fric
-            th += om * h
-            if th > half_pi:
-                th = half_pi
-                om = min(om, 0.0)
-            elif th < -half_pi:
-                th = -half_pi
-                om = max(om, 0.0)
-            theta[s] = th
-            omega[s] = om
+            theta[s], omega[s] = _advance_stopped(th, om, h, half_pi)
     for q in range(n_on + n_off):
         s = order[q]
         cap = contact_angle(dist[s], lever)

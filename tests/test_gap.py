@@ -137,7 +137,7 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     K, N, S = times.size, pos.shape[1], 4
     dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
     sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
-    rp.sonar_draws(rp.ReplayGeometry(pos, yaw, theta, *wall_geometry(arena)), sp, 1.0, times,
+    rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta), wall_geometry(arena), sp, 1.0, times,
                    rp.PoseNoise(0.0, 0.0, 0, 0), 1, dist, kind, xt)
     d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
     np.testing.assert_array_equal(dist[..., 0], d_sim)
@@ -158,7 +158,7 @@ def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
         d, k, x = np.empty((2, 1, 1, 1)), np.empty((2, 1, 1, 1), np.int8), np.empty((2, 1, 1, 1))
         sp = SonarModel.from_config(cfg)._replace(mount_yaw=np.zeros(1), offset=0.0, radius=0.15, max_range=3.0,
                                                   cos_half_angle=0.7, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
-        rp.sonar_draws(rp.ReplayGeometry(pos, yaw, theta, *wall_geometry(arena)), sp, g, np.arange(2, dtype=np.int64),
+        rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta), wall_geometry(arena), sp, g, np.arange(2, dtype=np.int64),
                        rp.PoseNoise(0.0, 0.0, 0, 0), 1, d, k, x)
         out[g] = d[0, 0, 0, 0]
     assert out[0.0] == pytest.approx(1.5)

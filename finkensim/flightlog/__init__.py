@@ -21,15 +21,5 @@ from .format import DEFAULT_COPTER_RADIUS, DEFAULT_SONAR_YAW, FORMAT, SONAR_NAME
 from .npz import load, save
 from .validation import validate
 
-__all__ = [
-    "FORMAT",
-    "SONAR_NAMES",
-    "DEFAULT_SONAR_YAW",
-    "DEFAULT_COPTER_RADIUS",
-    "FlightLogError",
-    "FlightLog",
-    "validate",
-    "save",
-    "load",
-    "from_csv",
-]
+__all__ = ["FORMAT", "SONAR_NAMES", "DEFAULT_SONAR_YAW", "DEFAULT_COPTER_RADIUS", "FlightLogError", "FlightLog",
+           "validate", "save", "load", "from_csv"]

@@ -78,7 +78,8 @@ def _rayleigh_scale(base: ModelParams, v: dict) -> ModelParams:
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
     # without geometric cross-talk in the base model the schedule is unknown: every copter fires at once
     geometric = bool(base.sonar.crosstalk & CROSSTALK_GEOMETRIC)
-    return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_GEOMETRIC, crosstalk_hear_probability=v["probability"],
+    return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_GEOMETRIC,
+                           crosstalk_hear_probability=v["probability"],
                            schedule=base.sonar.schedule if geometric else SCHEDULE_SIMULTANEOUS)
 
 

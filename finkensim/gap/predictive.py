@@ -128,8 +128,8 @@ class SonarTable(Table):
             names = names or names_f
             K, N = f.samples.size, f.n_copters
             out = np.empty((K, N, S, 8))
-            rp.sonar_features(f.geometry, f.sonar_model(sonar).with_beam(0.0, 1), f.samples, f.sigma_xy, f.sigma_yaw,
-                              out)
+            one_ray = f.sonar_model(sonar).with_beam(0.0, 1)
+            rp.sonar_features(f.poses, f.walls, one_ray, f.samples, f.sigma_xy, f.sigma_yaw, out)
             y = f.log.ultrasonic[f.samples].copy()  # (K, N, S)
             # readings whose ideal value flips under the tracking noise (grazing a rim, at the range
             # limit) are left out of every score alike: a small ensemble cannot represent them
@@ -172,7 +172,8 @@ class SonarTable(Table):
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        rp.sonar_draws(fl.geometry, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, dist, kind, xt)
+        rp.sonar_draws(fl.poses, fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G,
+                       dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:

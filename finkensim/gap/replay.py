@@ -29,7 +29,7 @@ from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_env, shifted_plates_env,
                                      sonar_hit, sonar_poses_env)
-from ..sensors.sonar_model import SonarModel, wall_geometry
+from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
 
 
 class GapInputError(ValueError):
@@ -69,9 +69,14 @@ class Flight:
         return self.pos.shape[1]
 
     @property
-    def geometry(self) -> "ReplayGeometry":
-        """The flight as the sonar kernels see it (logged poses, replayed plate angles, the log's arena)."""
-        return ReplayGeometry(self.pos, self.yaw, self.theta_unit, *wall_geometry(self.arena))
+    def poses(self) -> "ReplayPoses":
+        """The flight as the sonar kernels see it: logged poses and replayed plate angles."""
+        return ReplayPoses(self.pos, self.yaw, self.theta_unit)
+
+    @property
+    def walls(self) -> WallGeometry:
+        """The log's arena as the sonar kernels see it."""
+        return wall_geometry(self.arena)
 
     def sonar_model(self, sp: SonarModel) -> SonarModel:
         """``sp`` with the geometry this log records: sonar mounting yaws and offset, copter radius."""
@@ -175,47 +180,49 @@ def draw_poses(pos, yaw, k, m, noise, pos_out, yaw_out):
 
 # --------------------------------------------------------------------------------------- sonar
 
-class ReplayGeometry(NamedTuple):
-    """A logged flight as the sonar kernels see it: pos (T, N, 2) m, yaw (T, N) rad, theta (T, S_p) rad
-    plate angles of the replayed walls, and the walls' fields of
-    :class:`~finkensim.sensors.sonar_model.WallGeometry` (plate_a, plate_b, normal (S_p, 2) m, lever,
-    width, length m). Flat, not nested: numba's parallel loops cannot pass a NamedTuple inside one."""
+class ReplayPoses(NamedTuple):
+    """A logged flight as the sonar kernels see it: pos (T, N, 2) m, yaw (T, N) rad, theta (T, S_p) rad plate
+    angles of the replayed walls. The walls themselves are a :class:`~finkensim.sensors.sonar_model.WallGeometry`
+    passed beside it (numba's parallel loops cannot take a record nested in a record)."""
 
     pos: np.ndarray
     yaw: np.ndarray
     theta: np.ndarray
-    plate_a: np.ndarray
-    plate_b: np.ndarray
-    normal: np.ndarray
-    lever: float
-    width: float
-    length: float
 
 
 _ideal_fn = njit(cache=True)(ideal_env.py_func)
 
 
 @njit(cache=True)
-def _sonar_draw(geo, sp, gain, k, m, noise, pb_, yb, pa, pbb, slots, buf, dist, kind, hit, xt):
+def _sonar_draw(poses, w, sp, gain, k, m, noise, dist, kind, xt):
     """One pose draw (m) at sample k: ideal readings into dist/kind (N, S) and cross-talk paths into xt (N, S)."""
-    w = geo
-    draw_poses(geo.pos, geo.yaw, k, m, noise, pb_, yb)
-    shifted_plates_env(geo.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pbb)
-    _ideal_fn(pb_, yb, pa, pbb, w.width, w.length, sp, buf, dist, kind, hit)
+    N = poses.pos.shape[1]
+    S = sp.mount_yaw.shape[0]
+    P = w.plate_a.shape[0]
+    pos_m = np.empty((N, 2))
+    yaw_m = np.empty(N)
+    pa = np.empty((P, 2))
+    pb = np.empty((P, 2))
+    slots = np.zeros(N, dtype=np.int64)
+    buf = np.empty((N, S, 4))
+    draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
+    shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
+    _ideal_fn(pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, dist, kind, np.empty((N, S, 2)))
     fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
-    for n in range(pb_.shape[0]):
-        for s in range(sp.mount_yaw.shape[0]):
+    for n in range(N):
+        for s in range(S):
             xt[n, s] = crosstalk_path(n, s, buf, slots, sp)
 
 
 @njit(cache=True, parallel=True)
-def sonar_draws(geo, sp, gain, times, noise, M, out_dist, out_kind, out_xtalk):
+def sonar_draws(poses, w, sp, gain, times, noise, M, out_dist, out_kind, out_xtalk):
     """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``, computed
     with the simulator's own kernels (:mod:`finkensim.sensors.sonar_kernels`).
 
-    geo: :class:`ReplayGeometry`; sp: the :class:`~finkensim.sensors.sonar_model.SonarModel` (mounting,
-    offset and radius from the log; its beam rays, range, cone and schedule); gain scales the plate
-    displacement (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`.
+    poses: :class:`ReplayPoses`; w: the :class:`~finkensim.sensors.sonar_model.WallGeometry`; sp: the
+    :class:`~finkensim.sensors.sonar_model.SonarModel` (mounting, offset and radius from the log; its beam
+    rays, range, cone and schedule); gain scales the plate displacement
+    (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`.
     Writes out_dist (K, N, S, M) m (max_range when no echo), out_kind (K, N, S, M) (HIT_*), out_xtalk
     (K, N, S, M) m: the shortest emitter → receiver path heard under geometric cross-talk
     (:func:`~finkensim.sensors.sonar_kernels.crosstalk_path`) among the copters firing in the receiver's
@@ -223,18 +230,15 @@ def sonar_draws(geo, sp, gain, times, noise, M, out_dist, out_kind, out_xtalk):
     the schedules a random-offset sonar may have used; inf if none.
     """
     K = times.shape[0]
-    N = geo.pos.shape[1]
+    N = poses.pos.shape[1]
     S = sp.mount_yaw.shape[0]
-    P = geo.plate_a.shape[0]
     for i in prange(K * M):
         ti = i // M
         m = i % M
         dist = np.empty((N, S))
         kind = np.empty((N, S), dtype=np.int64)
         xt = np.empty((N, S))
-        _sonar_draw(geo, sp, gain, times[ti], m, noise, np.empty((N, 2)), np.empty(N), np.empty((P, 2)),
-                    np.empty((P, 2)), np.zeros(N, dtype=np.int64), np.empty((N, S, 4)), dist, kind,
-                    np.empty((N, S, 2)), xt)
+        _sonar_draw(poses, w, sp, gain, times[ti], m, noise, dist, kind, xt)
         for n in range(N):
             for s in range(S):
                 out_dist[ti, n, s, m] = dist[n, s]
@@ -278,7 +282,7 @@ def _sonar_context(P2, yaw_k, theta_k, w, pa, pb, sp, n, s, t_, hk, hx, hy, out)
 
 
 @njit(cache=True, parallel=True)
-def sonar_features(geo, sp, times, sigma_xy, sigma_yaw, out):
+def sonar_features(poses, w, sp, times, sigma_xy, sigma_yaw, out):
     """Context features of every sonar reading at the logged poses → out (K, N, S, 8):
 
     0 true_range (m), 1 hit_type (0 none, 1 wall, 2 copter), 2 incidence (deg, ray vs wall
@@ -290,27 +294,26 @@ def sonar_features(geo, sp, times, sigma_xy, sigma_yaw, out):
     range limit, divided by σ_xy + σ_ψ·distance; inf without noise). Readings with a small
     ambiguity have an ideal value that flips under tracking noise.
 
-    geo: :class:`ReplayGeometry`; sp: the SonarModel with one ray along each sonar's heading
+    poses: :class:`ReplayPoses`; w: the WallGeometry; sp: the SonarModel with one ray along each sonar's heading
     (``sp.with_beam(0.0, 1)``); ``sp.cos_half_angle`` is the cone of feature 4.
     """
     K = times.shape[0]
-    N = geo.pos.shape[1]
+    N = poses.pos.shape[1]
     S = sp.mount_yaw.shape[0]
-    w = geo
     P = w.plate_a.shape[0]
     for ti in prange(K):
         k = times[ti]
         pa = np.empty((P, 2))
         pbb = np.empty((P, 2))
         buf = np.empty((N, S, 4))
-        displaced_plates_env(geo.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, pa, pbb)
-        P2 = geo.pos[k]
-        sonar_poses_env(P2, geo.yaw[k], sp, buf)
+        displaced_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, pa, pbb)
+        P2 = poses.pos[k]
+        sonar_poses_env(P2, poses.yaw[k], sp, buf)
         bands = plate_bands(pa, pbb, w.width, w.length)
         for n in range(N):
             wd = min(min(P2[n, 0], w.width - P2[n, 0]), min(P2[n, 1], w.length - P2[n, 1]))
             for s in range(S):
-                t_, hk, hx, hy = sonar_hit(n, s, P2, geo.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands)
+                t_, hk, hx, hy = sonar_hit(n, s, P2, poses.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands)
                 o = out[ti, n, s]
                 o[6] = wd
                 if t_ > sp.max_range:
@@ -319,7 +322,7 @@ def sonar_features(geo, sp, times, sigma_xy, sigma_yaw, out):
                 else:
                     o[0] = t_
                     o[1] = hk
-                _sonar_context(P2, geo.yaw[k], geo.theta[k], w, pa, pbb, sp, n, s, t_, hk, hx, hy, o)
+                _sonar_context(P2, poses.yaw[k], poses.theta[k], w, pa, pbb, sp, n, s, t_, hk, hx, hy, o)
                 o[4], o[7] = _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw)
 
 

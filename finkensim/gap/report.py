@@ -130,7 +130,8 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
         hi = np.array([loc["ci"][1] if loc["ci"][1] is not None else np.nan for loc in locs], float)
         labels = [f"{loc['sensor']}/{loc['channel']} {loc['feature']} [{loc['low']:.2g}, {loc['high']:.2g})"
                   for loc in locs]
-        paths["gap"] = _barh(out / "gap_by_condition.png", labels, g, ["C3" if i in sig else "0.6" for i in range(len(locs))],
+        colors = ["C3" if i in sig else "0.6" for i in range(len(locs))]
+        paths["gap"] = _barh(out / "gap_by_condition.png", labels, g, colors,
                              "normalised gap per reading (95 % CI); red = significant after FDR control",
                              "Where the simulator disagrees with the logs", width=8, fontsize=8,
                              xerr=[np.nan_to_num(g - lo), np.nan_to_num(hi - g)])
