@@ -16,10 +16,9 @@ from numba import njit
 
 from finkensim.arena import walls_step_env
 from finkensim.kernels.geometry import nearest_body_distance_within_env
-from finkensim.kernels.rng import STREAM_RANGING, counter_key
 from finkensim.sensors.imu import imu_env
-from finkensim.sensors.ranging import MODE_SEED, _fast_reading, _seed_reading
 from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
+from finkensim.swarm import ranging_env
 from finkensim.world import step_env
 
 
@@ -94,25 +93,10 @@ def t_down(B, N, sp, seed, reps):
 def t_ranging(pos, seed, p, reps):
     B, n, _ = pos.shape
     out = np.empty((n, n))
-    mode, max_range, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std, log_wn, half_inv_covar, seed_std = p
+    beacons = np.empty((0, 2))
     for r in range(reps):
         for b in range(B):
-            for i in range(n):
-                key = counter_key(seed, b, r, i, STREAM_RANGING)
-                for j in range(n):
-                    if j == i:
-                        out[i, j] = 0.0
-                        continue
-                    dx = pos[b, j, 0] - pos[b, i, 0]
-                    dy = pos[b, j, 1] - pos[b, i, 1]
-                    x = np.sqrt(dx * dx + dy * dy)
-                    if x > max_range:
-                        y = max_range
-                    elif mode == MODE_SEED:
-                        y = _seed_reading(x, key, j, mean, cond_mean, log_wn, half_inv_covar, seed_std)
-                    else:
-                        y = _fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std)
-                    out[i, j] = y if y > 0.0 else 0.0
+            ranging_env(pos[b], beacons, seed, b, r, p, out)
 
 
 @njit(cache=True)
