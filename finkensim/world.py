@@ -223,9 +223,14 @@ def _init_positions(seed, env_ids, n, width, length, radius, min_sep, pos, yaw):
 
 class World:
     """Static part of a simulation (config, arena geometry, kernel parameters) and its pure functions.
+    Physics only: commands in, new state out; no behaviour, no sensor.
 
     Args:
         cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
+
+    Attributes: ``cfg``; ``arena`` (:class:`~finkensim.arena.Arena`); the kernel records ``copter_params``
+    (:class:`~finkensim.copters.CopterParams`), ``hinge_params`` (:class:`~finkensim.arena.HingeParams`) and
+    ``geometry`` (:class:`Geometry`); ``dt`` s.
     """
 
     def __init__(self, cfg: Config | str | dict | None = None):
