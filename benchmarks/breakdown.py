@@ -1,9 +1,8 @@
 """Where the time of the full FINken step goes: ``python -m benchmarks.breakdown [--n 10 100]``.
 
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
-B environments, ``time.thread_time``, best of 5), on states taken from a real run (the swarm — or,
-without ``finkensim.swarm``, the world rollout — after 100 steps, so plates swing and copters are
-spread). Reports µs per env-step and the share of the sum. Not part of ``make bench``; numbers for
+B environments, ``time.thread_time``, best of 5), on states taken from a real run (the swarm after
+100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum. Not part of ``make bench``; numbers for
 the reply / issue, and a check after optimising a kernel.
 """
 from __future__ import annotations
@@ -17,28 +16,25 @@ from numba import njit
 
 from finkensim.arena import walls_step_env
 from finkensim.kernels.geometry import nearest_body_distance_within_env
-from finkensim.kernels.rng import STREAM_RANGING, counter_key
 from finkensim.sensors.imu import imu_env
-from finkensim.sensors.ranging import MODE_SEED, _fast_reading, _seed_reading
 from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
+from finkensim.swarm import ranging_env
 from finkensim.world import step_env
 
 
 @njit(cache=True)
-def t_world(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_col, wc, col, cp, hp, seg_a, seg_b, lever,
-            dt, reps):
-    B, N, _ = pos.shape
-    dist_buf = np.empty(seg_a.shape[0])
+def t_world(w, cp, hp, geo, dt, reps):
+    B, N, _ = w.pos.shape
+    dist_buf = np.empty(geo.seg_a.shape[0])
     gap = np.empty(N)
     cmd_v = np.zeros((N, 2))
     cmd_w = np.zeros(N)
     for _ in range(reps):
         for b in range(B):
             for n in range(N):
-                cmd_v[n, 0] = 0.2 * np.cos(yaw[b, n])
-                cmd_v[n, 1] = 0.2 * np.sin(yaw[b, n])
-            step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
-                     in_col[b], wc[b], col[b], cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt, dist_buf, gap)
+                cmd_v[n, 0] = 0.2 * np.cos(w.yaw[b, n])
+                cmd_v[n, 1] = 0.2 * np.sin(w.yaw[b, n])
+            step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap)
 
 
 @njit(cache=True)
@@ -97,25 +93,10 @@ def t_down(B, N, sp, seed, reps):
 def t_ranging(pos, seed, p, reps):
     B, n, _ = pos.shape
     out = np.empty((n, n))
-    mode, max_range, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std, log_wn, half_inv_covar, seed_std = p
+    beacons = np.empty((0, 2))
     for r in range(reps):
         for b in range(B):
-            for i in range(n):
-                key = counter_key(seed, b, r, i, STREAM_RANGING)
-                for j in range(n):
-                    if j == i:
-                        out[i, j] = 0.0
-                        continue
-                    dx = pos[b, j, 0] - pos[b, i, 0]
-                    dy = pos[b, j, 1] - pos[b, i, 1]
-                    x = np.sqrt(dx * dx + dy * dy)
-                    if x > max_range:
-                        y = max_range
-                    elif mode == MODE_SEED:
-                        y = _seed_reading(x, key, j, mean, cond_mean, log_wn, half_inv_covar, seed_std)
-                    else:
-                        y = _fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std)
-                    out[i, j] = y if y > 0.0 else 0.0
+            ranging_env(pos[b], beacons, seed, b, r, p, out)
 
 
 @njit(cache=True)
@@ -139,26 +120,16 @@ def _best(fn, args, reps, B, repeats=5):
 
 
 def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dict:
-    from .workloads import finken_config, swarm_status
+    from finkensim.swarm import SwarmSim
+
+    from .workloads import finken_config
 
     cfg = finken_config(n, b)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        if swarm_status() is None:
-            from finkensim.swarm import SwarmSim
-
-            sim = SwarmSim(cfg)
-            st, _ = sim.rollout(sim.init(n_envs=b, seed=1), warm_steps, record=False)
-            ws, world, sp, rp, ip = st.world, sim.world, sim.sonar, sim.ranging, sim.imu
-        else:
-            from finkensim.sensors.imu import ImuModel
-            from finkensim.sensors.ranging import RangingModel
-            from finkensim.sensors.ultrasonic import SonarModel
-            from finkensim.world import World
-
-            world = World(cfg)
-            ws, _ = world.rollout(world.init(n_envs=b, seed=1), warm_steps, controller="random_walk", record=False)
-            sp, rp, ip = SonarModel.from_config(cfg), RangingModel.from_config(cfg.ranging), ImuModel.from_config(cfg.imu, world.dt)
+        sim = SwarmSim(cfg)
+        st, _ = sim.rollout(sim.init(n_envs=b, seed=1), warm_steps, record=False)
+        ws, world, sp, rp, ip = st.world, sim.world, sim.sonar, sim.ranging, sim.imu
     a = world.arena
     s = ws.copy()
     dist = np.empty((b, a.seg_a.shape[0]))
@@ -168,9 +139,7 @@ def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dic
     geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp, 1)
     rows = {
         "world step (move, contacts, plate distances, hinges)": _best(
-            t_world, (s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
-                      s.wall_contacts, s.collisions, world.copter_params, world.hinge_params, a.seg_a, a.seg_b, a.lever,
-                      world.dt), reps, b),
+            t_world, (s.arrays(), world.copter_params, world.hinge_params, world.geometry, world.dt), reps, b),
         "  of which plate distances (segments near each copter)": _best(
             t_nearest, (ws.pos, a.seg_a, a.seg_b, world.copter_params.radius, cutoff), reps, b),
         "  of which hinge dynamics (S plates × substeps)": _best(

@@ -21,7 +21,7 @@ step). VMAS runs the same scene in ``benchmarks/peers/vmas_scenario.py``.
 geometric cross-talk, 2.5 m virtual ranging with the K = 100 mixture, the inertial sensor and the
 attraction–repulsion behaviour: :class:`FinkenWorkload` uses ``finkensim.swarm`` (compiled closed
 loop) when it is importable, and otherwise the stand-in :class:`FinkenStandIn`: ``World.rollout``
-(compiled, random-walk controller) followed by the batched sensors over the recorded trajectory
+(random-walk controller, per-step) followed by the batched sensors over the recorded trajectory
 (ultrasonic, ranging, IMU) — the same sensing work per step, but open loop and without the
 behaviour's own cost.
 """
@@ -284,7 +284,7 @@ class FinkenSwarm:
 
 
 class FinkenStandIn:
-    """Stand-in for workload (b) while ``finkensim.swarm`` is missing: the compiled world rollout
+    """Stand-in for workload (b) while ``finkensim.swarm`` is missing: the world rollout
     (bending walls, random-walk controller) for T steps, then the batched sensors over the recorded
     trajectory — ultrasonic (Rayleigh + geometric cross-talk) and IMU in one call each over all T × B
     states, ranging (mixture, 2.5 m) once per recorded step. Open loop: the sensor readings do not
@@ -315,7 +315,9 @@ class FinkenStandIn:
         from finkensim.sensors.ultrasonic import ultrasonic_from_trajectory
 
         s0 = self.state
-        self.state, traj = self.world.rollout(s0, int(n_steps), controller="random_walk", record=True)
+        from finkensim.behaviours.open_loop import RandomWalk
+
+        self.state, traj = self.world.rollout(s0, int(n_steps), controller=RandomWalk(self.cfg), record=True)
         ultrasonic_from_trajectory(traj, self.world.arena, self.sonar, s0.seed, s0.env_ids, s0.step)
         out = None
         for t in range(int(n_steps)):

@@ -71,7 +71,7 @@ def _select_traj(traj, k):
 
 
 def check_determinism(world_or_cfg, n_envs: int = 3, n_steps: int = 50, seed: int = 0,
-                      controller: str | Callable | None = None) -> None:
+                      controller: Callable | None = None) -> None:
     """Check that rollouts are reproducible and batch-independent; raise AssertionError on the first mismatch.
 
     Runs ``world.rollout(world.init(n_envs, seed), n_steps, controller)`` and checks that
@@ -89,9 +89,13 @@ def check_determinism(world_or_cfg, n_envs: int = 3, n_steps: int = 50, seed: in
         n_envs: environments in the batch (>= 1).
         n_steps: steps per rollout (>= 0).
         seed: the seed passed to ``init``.
-        controller: passed to :meth:`~finkensim.world.World.rollout`; None = the config's ``behaviour.kind``.
+        controller: ``f(world, state) -> (cmd_vel, cmd_yaw_rate)`` passed to
+            :meth:`~finkensim.world.World.rollout`; None = the config's open-loop ``behaviour.kind``
+            (:func:`~finkensim.behaviours.open_loop.open_loop_controller`).
     """
-    from .world import World  # local import: world imports the kernels, keep this module light to import
+    # local imports: world imports the kernels, keep this module light to import
+    from .behaviours.open_loop import open_loop_controller
+    from .world import World
 
     if isinstance(world_or_cfg, World):
         world = world_or_cfg
@@ -100,6 +104,8 @@ def check_determinism(world_or_cfg, n_envs: int = 3, n_steps: int = 50, seed: in
     if int(n_envs) < 1:
         raise ValueError(f"n_envs = {n_envs!r}: expected >= 1")
     n_envs, n_steps = int(n_envs), int(n_steps)
+    if controller is None:
+        controller = open_loop_controller(world.cfg)
 
     init = world.init(n_envs=n_envs, seed=seed)
     init_copy = init.copy()

@@ -4,68 +4,37 @@
     run_episode(cfg, seed=7)   # {"cohesion": 1.02, "nearest_neighbour": 0.81, ...}
 
 An episode places ``copters.n`` copters at random (keyed by ``seed`` and ``env_id``), flies them
-for round(simulation.duration / simulation.dt) steps with ``behaviour.kind`` and returns the
-metrics of :mod:`finkensim.metrics` as plain floats. The open-loop behaviours (``random_walk``,
-``hover``) run in :meth:`World.rollout <finkensim.world.World.rollout>`; behaviours that read
-sensors (``attraction_repulsion``) run in the closed-loop compiled rollout of
-:class:`finkensim.swarm.SwarmSim` (sonar, ranging, IMU, wall check) when that module is installed. :func:`check_runnable` tells, without running anything, whether a
-config can be run.
+for round(simulation.duration / simulation.dt) steps with ``behaviour.kind`` in the compiled loop of
+:class:`finkensim.swarm.SwarmSim` and returns the metrics of :mod:`finkensim.metrics` as plain floats.
+Behaviours that read sensors (``attraction_repulsion``) run with every enabled sensor and the wall
+check; the open-loop ones (``random_walk``, ``hover``) run with the sensors off (they read none).
+:func:`check_runnable` tells, without running anything, whether a config can be run.
 """
 from __future__ import annotations
 
-import importlib
 from typing import Any, Iterable, Mapping
 
+from .behaviours.open_loop import OPEN_LOOP_BEHAVIOURS
 from .config import Config, ConfigError
+from .default_scenario import load_scenario
 from .metrics import episode_metrics
-from .scenario import load_scenario
+from .swarm import SwarmSim, needs_sensors
 
 __all__ = ["OPEN_LOOP_BEHAVIOURS", "needs_sensors", "check_runnable", "run_episode"]
 
-OPEN_LOOP_BEHAVIOURS = ("random_walk", "hover")  # compiled into World.rollout; no sensors needed
-
-
-def needs_sensors(kind: str) -> bool:
-    """True when ``behaviour.kind`` is a closed-loop controller (reads sensors; runs in finkensim.swarm)."""
-    return kind not in OPEN_LOOP_BEHAVIOURS
-
-
-def _swarm_module():
-    """``finkensim.swarm`` if installed, else None (a swarm module that fails to import is an error)."""
-    try:
-        return importlib.import_module("finkensim.swarm")
-    except ModuleNotFoundError as exc:
-        if exc.name in ("finkensim.swarm",):
-            return None
-        raise
-
 
 def check_runnable(cfg: Config) -> None:
-    """Raise :class:`ConfigError` if :func:`run_episode` cannot run ``cfg``: a closed-loop behaviour without
-    the swarm module, or a config the swarm rejects (e.g. attraction-repulsion with the sonars disabled)."""
-    kind = cfg.behaviour.kind
-    if not needs_sensors(kind):
-        return
-    swarm = _swarm_module()
-    if swarm is None:
-        raise ConfigError(
-            f"behaviour.kind = {kind!r}: this behaviour reads sensors and needs the closed-loop swarm rollout "
-            f"(finkensim.swarm), which is not installed; expected one of {', '.join(map(repr, OPEN_LOOP_BEHAVIOURS))}")
-    swarm.SwarmSim(cfg)  # builds the sensor models and checks what the behaviour needs; runs nothing
+    """Raise :class:`ConfigError` if :func:`run_episode` cannot run ``cfg``: a config the swarm rejects
+    (e.g. attraction-repulsion with the sonars disabled). Runs nothing; the open-loop behaviours always run."""
+    if needs_sensors(cfg.behaviour.kind):
+        SwarmSim(cfg)  # builds the sensor models and checks what the behaviour needs
 
 
 def _rollout(cfg: Config, seed: int, env_id: int, n_steps: int):
-    """(pose (T, 1, N, 3), final positions (1, N, 2)) of ``n_steps`` steps of the configured behaviour."""
-    if needs_sensors(cfg.behaviour.kind):
-        check_runnable(cfg)  # a clear error when finkensim.swarm is missing
-        sim = _swarm_module().SwarmSim(cfg)  # the closed loop: sense -> behave -> step, compiled
-        final, rec = sim.rollout(sim.init(seed=seed, env_ids=[env_id]), n_steps, record=("pose",))
-        return rec.pose, final.world.pos
-    from .world import World
-
-    world = World(cfg)
-    final, traj = world.rollout(world.init(seed=seed, env_ids=[env_id]), n_steps, controller=cfg.behaviour.kind)
-    return traj.pose, final.pos
+    """(pose (T, 1, N, 3) m/rad, final positions (1, N, 2) m) of ``n_steps`` steps of the configured behaviour."""
+    sim = SwarmSim(cfg, sensors=needs_sensors(cfg.behaviour.kind))
+    final, rec = sim.rollout(sim.init(seed=seed, env_ids=[env_id]), n_steps, record=("pose",))
+    return rec.pose, final.world.pos
 
 
 def run_episode(cfg: Config | str | Mapping[str, Any] | None, seed: int, env_id: int = 0,

@@ -1,14 +1,14 @@
 """Swarm-behaviour metrics of an episode, from its recorded poses; batched over environments.
 
     from finkensim.metrics import episode_metrics, METRICS
-    final, traj = world.rollout(state0, n_steps)
-    m = episode_metrics(traj.pose, (cfg.arena.width, cfg.arena.length), cfg.copters.radius,
-                        final_pos=final.pos)
+    final, rec = sim.rollout(state0, n_steps, record=("pose",))      # sim = finkensim.swarm.SwarmSim(cfg)
+    m = episode_metrics(rec.pose, (cfg.arena.width, cfg.arena.length), cfg.copters.radius,
+                        final_pos=final.world.pos)
     m["cohesion"]            # (B,) m, one value per environment
 
 Input: ``pose`` (T, B, N, 3) (x, y, yaw; only x, y are used; (T, B, N, 2) works too), sampled
-every step as :meth:`World.rollout <finkensim.world.World.rollout>` records it (the state before
-each step). Every value is a NumPy array shaped (B,), float64. The metrics (name, unit, meaning):
+every step as :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` and
+:meth:`World.rollout <finkensim.world.World.rollout>` record it (the state before each step). Every value is a NumPy array shaped (B,), float64. The metrics (name, unit, meaning):
 
 ``cohesion`` (m)
     Distance of a copter centre from the swarm centroid (mean of the N centres), averaged over

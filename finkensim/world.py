@@ -10,23 +10,76 @@ to a single run with ``env_ids=[k]``.
     world = World(load_config())
     state = world.init(n_envs=64, seed=1)
     state = world.step(state, cmd_vel, cmd_yaw_rate)       # pure: returns a new state
-    final, traj = world.rollout(state, n_steps=1200)       # compiled loop, no per-step Python
+    final, traj = world.rollout(state, 1200, controller)   # controller(world, state) -> commands, per step
+
+The world is physics only: it moves copters and plates given commands and knows no behaviour. The
+compiled closed loop (sensors → behaviour → :func:`step_env`) is :class:`finkensim.swarm.SwarmSim`;
+ready-made open-loop controllers for :meth:`World.rollout` are in :mod:`finkensim.behaviours.open_loop`.
+
+Kernels take the state and the static model as flat NamedTuple records: :class:`WorldArrays` (the
+state arrays), :class:`~finkensim.copters.CopterParams` (body), :class:`~finkensim.arena.HingeParams`
+(hinges) and :class:`Geometry` (wall segments and plates).
 """
 from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, fields, replace
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 from .arena import Arena, HingeParams, walls_step_env
-from .behaviours.random_walk import RandomWalkParams, random_walk_env
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.geometry import nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
+
+
+class WorldArrays(NamedTuple):
+    """The state arrays of a :class:`WorldState` as one flat record for the kernels (views, not copies).
+
+    pos (B, N, 2) m; vel (B, N, 2) m/s; acc (B, N, 2) m/s²; yaw (B, N) rad; yaw_rate (B, N) rad/s;
+    theta (B, S) rad; omega (B, S) rad/s; integ (B, S) rad·s; in_wall, in_collision (B, N) bool;
+    wall_contacts, collisions (B, N) int64. Kernels index environment b as ``w.pos[b]`` etc.
+    """
+
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+    yaw: np.ndarray
+    yaw_rate: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    integ: np.ndarray
+    in_wall: np.ndarray
+    in_collision: np.ndarray
+    wall_contacts: np.ndarray
+    collisions: np.ndarray
+
+
+class Geometry(NamedTuple):
+    """The arena as the kernels need it (from :class:`~finkensim.arena.Arena`).
+
+    seg_a, seg_b (S, 2) m: each plate's full-pitch rest line (for body distances); plate_a, plate_b
+    (S, 2) m: the plate's own width; normal (S, 2): unit inward normals; lever m: hinge height −
+    altitude; width, length m: the arena rectangle.
+    """
+
+    seg_a: np.ndarray
+    seg_b: np.ndarray
+    plate_a: np.ndarray
+    plate_b: np.ndarray
+    normal: np.ndarray
+    lever: float
+    width: float
+    length: float
+
+    @classmethod
+    def from_arena(cls, arena: Arena) -> "Geometry":
+        f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+        return cls(f(arena.seg_a), f(arena.seg_b), f(arena.plate_a), f(arena.plate_b), f(arena.normal),
+                   float(arena.lever), float(arena.width), float(arena.length))
 
 
 @dataclass(frozen=True)
@@ -72,6 +125,11 @@ class WorldState:
         """(B, N, 3): x, y, yaw."""
         return np.concatenate([self.pos, self.yaw[..., None]], axis=-1)
 
+    def arrays(self) -> WorldArrays:
+        """The state arrays as a :class:`WorldArrays` record (the same arrays, not copies)."""
+        return WorldArrays(self.pos, self.vel, self.acc, self.yaw, self.yaw_rate, self.theta, self.omega,
+                           self.integ, self.in_wall, self.in_collision, self.wall_contacts, self.collisions)
+
     def copy(self) -> "WorldState":
         return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)
                                 if isinstance(getattr(self, f.name), np.ndarray)})
@@ -101,67 +159,38 @@ class Trajectory:
 
 
 @njit(cache=True, inline="always")
-def step_env(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-             collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt, dist_buf, gap_buf):
-    """Advance one environment by dt in place: copters move, contacts are counted, plates respond.
+def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf):
+    """Advance environment b of the :class:`WorldArrays` ``w`` by dt s in place: copters move, contacts
+    are counted, plates respond.
 
-    The plates need the nearest-body distance only below max(threshold, lever): farther, a plate is
-    inactive and its contact cap is 90° whatever the distance, so dist_buf holds the exact distances
-    below that and inf above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
+    cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; cp
+    :class:`~finkensim.copters.CopterParams`, hp :class:`~finkensim.arena.HingeParams`, geo
+    :class:`Geometry`; dist_buf (S,) and gap_buf (N,) are work buffers. The plates need the
+    nearest-body distance only below max(threshold, lever): farther, a plate is inactive and its
+    contact cap is 90° whatever the distance, so dist_buf holds the exact distances below that and inf
+    above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
     """
+    pos = w.pos[b]
+    vel = w.vel[b]
+    acc = w.acc[b]
+    yaw = w.yaw[b]
+    yaw_rate = w.yaw_rate[b]
     for n in range(pos.shape[0]):
         yaw[n], yaw_rate[n], gap_buf[n] = move_copter(
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
-    update_contacts_env(pos, cp.radius, gap_buf, in_wall, wall_contacts, in_collision, collisions)
-    nearest_body_distance_within_env(seg_a, seg_b, pos, cp.radius, max(hp.threshold, lever), dist_buf)
-    walls_step_env(theta, omega, integ, dist_buf, hp, lever, dt)
+    update_contacts_env(pos, cp.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
+                        w.collisions[b])
+    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, max(hp.threshold, geo.lever), dist_buf)
+    walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hp, geo.lever, dt)
 
 
 @njit(cache=True, parallel=True)
-def _step_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-                collisions, cmd_v, cmd_w, cp, hp, seg_a, seg_b, lever, dt):
-    for b in prange(pos.shape[0]):
-        dist_buf = np.empty(seg_a.shape[0])
-        touching = np.empty(pos.shape[1])
-        step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
-                 in_collision[b], wall_contacts[b], collisions[b], cmd_v[b], cmd_w[b], cp, hp, seg_a, seg_b,
-                 lever, dt, dist_buf, touching)
-
-
-CONTROLLER_HOVER = 0
-CONTROLLER_RANDOM_WALK = 1
-
-
-@njit(cache=True, parallel=True)
-def _rollout_batch(pos, vel, acc, yaw, yaw_rate, theta, omega, integ, in_wall, in_collision, wall_contacts,
-                   collisions, seed, env_ids, step0, n_steps, controller, rw, cp, hp, seg_a, seg_b, lever, dt,
-                   rec_pose, rec_vel, rec_acc, rec_yaw_rate, rec_theta):
-    """T steps of B environments with a built-in controller; records into rec_* when they have T rows."""
-    B, N, _ = pos.shape
-    record = rec_pose.shape[0] == n_steps
-    for b in prange(B):
-        dist_buf = np.empty(seg_a.shape[0])
-        touching = np.empty(N)
-        cmd_v = np.zeros((N, 2))
-        cmd_w = np.zeros(N)
-        for t in range(n_steps):
-            if record:
-                for n in range(N):
-                    rec_pose[t, b, n, 0] = pos[b, n, 0]
-                    rec_pose[t, b, n, 1] = pos[b, n, 1]
-                    rec_pose[t, b, n, 2] = yaw[b, n]
-                    rec_vel[t, b, n, 0] = vel[b, n, 0]
-                    rec_vel[t, b, n, 1] = vel[b, n, 1]
-                    rec_acc[t, b, n, 0] = acc[b, n, 0]
-                    rec_acc[t, b, n, 1] = acc[b, n, 1]
-                    rec_yaw_rate[t, b, n] = yaw_rate[b, n]
-                for s in range(seg_a.shape[0]):
-                    rec_theta[t, b, s] = theta[b, s]
-            if controller == CONTROLLER_RANDOM_WALK:
-                random_walk_env(pos[b], seed, env_ids[b], step0 + t, rw, cmd_v, cmd_w)
-            step_env(pos[b], vel[b], acc[b], yaw[b], yaw_rate[b], theta[b], omega[b], integ[b], in_wall[b],
-                     in_collision[b], wall_contacts[b], collisions[b], cmd_v, cmd_w, cp, hp, seg_a, seg_b,
-                     lever, dt, dist_buf, touching)
+def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt):
+    """One step of every environment of ``w`` (:class:`WorldArrays`) in place; cmd_v (B, N, 2), cmd_w (B, N)."""
+    for b in prange(w.pos.shape[0]):
+        dist_buf = np.empty(geo.seg_a.shape[0])
+        gap_buf = np.empty(w.pos.shape[1])
+        step_env(w, b, cmd_v[b], cmd_w[b], cp, hp, geo, dt, dist_buf, gap_buf)
 
 
 @njit(cache=True, parallel=True)
@@ -194,9 +223,14 @@ def _init_positions(seed, env_ids, n, width, length, radius, min_sep, pos, yaw):
 
 class World:
     """Static part of a simulation (config, arena geometry, kernel parameters) and its pure functions.
+    Physics only: commands in, new state out; no behaviour, no sensor.
 
     Args:
         cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
+
+    Attributes: ``cfg``; ``arena`` (:class:`~finkensim.arena.Arena`); the kernel records ``copter_params``
+    (:class:`~finkensim.copters.CopterParams`), ``hinge_params`` (:class:`~finkensim.arena.HingeParams`) and
+    ``geometry`` (:class:`Geometry`); ``dt`` s.
     """
 
     def __init__(self, cfg: Config | str | dict | None = None):
@@ -205,7 +239,7 @@ class World:
         self.arena = Arena.from_config(c.arena, c.walls)
         self.copter_params = CopterParams.from_config(c.copters, c.arena)
         self.hinge_params: HingeParams = self.arena.hinge
-        self.random_walk_params = RandomWalkParams.from_config(c.behaviour, c.arena.width, c.arena.length)
+        self.geometry = Geometry.from_arena(self.arena)
         self.dt = c.simulation.dt
 
     @property
@@ -267,7 +301,9 @@ class World:
             step=0, seed=seed, env_ids=env_ids,
         )
 
-    def _check_commands(self, state, cmd_vel, cmd_yaw_rate):
+    def check_commands(self, state: WorldState, cmd_vel, cmd_yaw_rate) -> tuple[np.ndarray, np.ndarray]:
+        """Validated C-contiguous float64 copies of the commands: cmd_vel broadcast to (B, N, 2) m/s and
+        cmd_yaw_rate to (B, N) rad/s (None → 0). Raises :class:`ConfigError` naming the bad argument."""
         B, N = state.n_envs, state.n_copters
 
         def as_array(name, value, shape, unit):
@@ -299,49 +335,38 @@ class World:
 
     def step_inplace(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> None:
         """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced)."""
-        cmd_vel, cmd_yaw_rate = self._check_commands(state, cmd_vel, cmd_yaw_rate)
-        s = state
-        _step_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall, s.in_collision,
-                    s.wall_contacts, s.collisions, cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params,
-                    self.arena.seg_a, self.arena.seg_b, self.arena.lever, self.dt)
+        cmd_vel, cmd_yaw_rate = self.check_commands(state, cmd_vel, cmd_yaw_rate)
+        _step_batch(state.arrays(), cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params, self.geometry,
+                    self.dt)
 
-    def rollout(self, state: WorldState, n_steps: int, controller: str | Callable | None = None,
+    def rollout(self, state: WorldState, n_steps: int, controller: Callable,
                 record: bool = True) -> tuple[WorldState, Trajectory | None]:
         """Run ``n_steps`` steps; returns (final state, trajectory recorded before each step, or None).
 
-        ``controller``: ``"random_walk"`` or ``"hover"`` run entirely in compiled code (no per-step
-        Python); a callable ``f(world, state) -> (cmd_vel, cmd_yaw_rate)`` is called once per step.
-        Default: ``behaviour.kind`` from the config.
+        ``controller(world, state) -> (cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) rad/s or None)`` is
+        called once per step with the current state (e.g. :class:`~finkensim.behaviours.open_loop.RandomWalk`).
+        ``state`` is left unchanged. For behaviours compiled with the sensors into one kernel, use
+        :class:`finkensim.swarm.SwarmSim`.
         """
-        if not isinstance(n_steps, (int, np.integer)) or n_steps < 0:
+        if not isinstance(n_steps, (int, np.integer)) or isinstance(n_steps, bool) or n_steps < 0:
             raise ConfigError(f"n_steps = {n_steps!r}: expected a non-negative integer")
-        controller = self.cfg.behaviour.kind if controller is None else controller
+        if not callable(controller):
+            raise ConfigError(f"controller = {controller!r}: expected a callable f(world, state) -> (cmd_vel, "
+                              "cmd_yaw_rate); see finkensim.behaviours.open_loop")
         new = state.copy()
         B, N, S, T = state.n_envs, state.n_copters, self.arena.n_plates, int(n_steps)
         shape_t = T if record else 0
         rec = dict(pose=np.empty((shape_t, B, N, 3)), vel=np.empty((shape_t, B, N, 2)),
                    acc=np.empty((shape_t, B, N, 2)), yaw_rate=np.empty((shape_t, B, N)),
                    theta=np.empty((shape_t, B, S)))
-        if callable(controller):
-            for k in range(T):
-                if record:
-                    rec["pose"][k] = new.pose
-                    rec["vel"][k], rec["acc"][k] = new.vel, new.acc
-                    rec["yaw_rate"][k], rec["theta"][k] = new.yaw_rate, new.theta
-                cmd_v, cmd_w = controller(self, new)
-                self.step_inplace(new, cmd_v, cmd_w)
-                new = replace(new, step=new.step + 1)
-        else:
-            codes = {"hover": CONTROLLER_HOVER, "random_walk": CONTROLLER_RANDOM_WALK}
-            if controller not in codes:
-                raise ConfigError(f"controller = {controller!r}: expected one of {', '.join(codes)} or a callable")
-            s = new
-            _rollout_batch(s.pos, s.vel, s.acc, s.yaw, s.yaw_rate, s.theta, s.omega, s.integ, s.in_wall,
-                           s.in_collision, s.wall_contacts, s.collisions, s.seed, s.env_ids, s.step, T,
-                           codes[controller], self.random_walk_params, self.copter_params, self.hinge_params,
-                           self.arena.seg_a, self.arena.seg_b, self.arena.lever, self.dt, rec["pose"], rec["vel"], rec["acc"],
-                           rec["yaw_rate"], rec["theta"])
-            new = replace(new, step=new.step + T)
+        for k in range(T):
+            if record:
+                rec["pose"][k] = new.pose
+                rec["vel"][k], rec["acc"][k] = new.vel, new.acc
+                rec["yaw_rate"][k], rec["theta"][k] = new.yaw_rate, new.theta
+            cmd_v, cmd_w = controller(self, new)
+            self.step_inplace(new, cmd_v, cmd_w)
+            new = replace(new, step=new.step + 1)
         traj = None
         if record:
             traj = Trajectory(t=(state.step + np.arange(T)) * self.dt, **rec)

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from finkensim.arena import (Arena, _amplitude_law, amplitude_law, contact_angle, hinge_substeps, target_angle,
                              target_angles, walls_step)
 from finkensim.config import Config, load_config
+from finkensim.behaviours.open_loop import RandomWalk, hover
 from finkensim.world import World
 from tests.naive import world as naive
 
@@ -159,7 +160,7 @@ def test_plate_settling_time_with_copter_at_0_3_m():
     r = cfg.copters.radius
     x = 1.5 + 0.5 * 3.0 / 16  # above the middle of south plate 8
     state = world.init(n_envs=1, positions=[[[x, 0.3 + r]]])
-    final, traj = world.rollout(state, n_steps=int(round(10.0 / world.dt)))
+    final, traj = world.rollout(state, n_steps=int(round(10.0 / world.dt)), controller=hover)
     plate = 8
     theta = np.append(traj.theta[:, 0, plate], final.theta[0, plate])
     t = np.arange(theta.size) * world.dt
@@ -210,7 +211,7 @@ def test_rigid_walls_never_move():
     r = cfg.copters.radius
     pos = np.array([[[r, 2.0], [3.0 - r, 1.0], [1.5, r], [1.0, 4.0 - r]]])  # touching all four walls
     state = world.init(n_envs=1, positions=pos)
-    _, traj = world.rollout(state, n_steps=100, controller="random_walk")
+    _, traj = world.rollout(state, n_steps=100, controller=RandomWalk(cfg))
     assert np.all(traj.theta == 0.0)
     # and the kernel forgets any deflection it is given
     a = Arena.from_config(cfg.arena, cfg.walls)

@@ -11,6 +11,7 @@ from finkensim import metrics as M
 from finkensim.config import Config
 from finkensim.metrics import (METRICS, check_metric_names, cohesion, collision_onsets, coverage, episode_metrics,
                                fragmentation, nearest_neighbour, wall_contact_onsets, wall_sticking)
+from finkensim.behaviours.open_loop import RandomWalk
 from finkensim.world import World
 
 ARENA = (3.0, 4.0)
@@ -115,7 +116,7 @@ def test_contact_counts_agree_with_the_world_counters():
     cfg = Config().replace({"copters.n": 8, "behaviour.speed": 0.8, "behaviour.wall_margin": 0.0})
     world = World(cfg)
     state0 = world.init(n_envs=4, seed=5)
-    final, tr = world.rollout(state0, 600)
+    final, tr = world.rollout(state0, 600, RandomWalk(cfg))
     m = episode_metrics(tr.pose, ARENA, R, final_pos=final.pos)
     np.testing.assert_array_equal(m["wall_contacts"], final.wall_contacts.sum(-1))
     assert m["wall_contacts"].sum() > 0, "the test needs some wall contacts"

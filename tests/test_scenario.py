@@ -7,7 +7,10 @@ import pytest
 from finkensim import flightlog
 from finkensim.cli import main
 from finkensim.config import ConfigError, config_from_dict
-from finkensim.scenario import _sensor_blocks, load_scenario, simulate_flight
+from finkensim.scenario import load_scenario, simulate_flight
+from finkensim.sensors.imu import ImuModel, ideal_imu, imu_from_trajectory
+from finkensim.sensors.ranging import RangingModel, ranging_readings
+from finkensim.sensors.ultrasonic import SonarModel, ultrasonic_from_trajectory
 from finkensim.swarm import SwarmSim
 
 DURATION = 3.0  # s: 61 samples
@@ -53,14 +56,23 @@ def test_attraction_repulsion_flight_is_the_closed_loop(ar_cfg, flight):
 
 
 def test_recorded_sensors_equal_the_sensor_models_along_the_trajectory(flight):
-    """Sensor blocks taken from the closed loop = the batched sensor functions replayed on the trajectory."""
+    """Sensor blocks recorded in the closed loop = the batched sensor functions replayed on the trajectory."""
     log, traj, world = flight
-    state0 = world.init(n_envs=1, seed=SEED)
-    replayed = _sensor_blocks(world, traj, state0, ideal=True)
-    for name in ("ultrasonic", "ranging", "imu_acc", "imu_gyro"):
-        np.testing.assert_array_equal(getattr(log, name), replayed[name], err_msg=name)
-    for name, value in replayed["extras"].items():
-        np.testing.assert_array_equal(log.extras[name], value, err_msg=name)
+    cfg, env_ids = world.cfg, np.array([0])
+    sonar, ideal, hit, _ = ultrasonic_from_trajectory(traj, world.arena, SonarModel.from_config(cfg), SEED, env_ids, 0,
+                                                      return_ideal=True)
+    np.testing.assert_array_equal(log.ultrasonic, sonar[:, 0])
+    np.testing.assert_array_equal(log.extras["ultrasonic_ideal"], ideal[:, 0])
+    np.testing.assert_array_equal(log.extras["ultrasonic_hit_type"], hit[:, 0])
+    model = RangingModel.from_config(cfg.ranging)
+    rows = np.stack([ranging_readings(np.ascontiguousarray(traj.pose[k, :, :, :2]), np.zeros((0, 2)), SEED, env_ids,
+                                      k, model)[0] for k in range(traj.pose.shape[0])])
+    np.testing.assert_array_equal(log.ranging, rows)
+    acc, gyro = imu_from_trajectory(traj, ImuModel.from_config(cfg.imu, world.dt), SEED, env_ids, 0)
+    np.testing.assert_array_equal(log.imu_acc, acc[:, 0])
+    np.testing.assert_array_equal(log.imu_gyro, gyro[:, 0])
+    acc_i, gyro_i = ideal_imu(traj.acc, traj.pose[..., 2], traj.yaw_rate)
+    np.testing.assert_array_equal(log.extras["imu_acc_ideal"], acc_i[:, 0])
     # the ideal values are there and the readings differ from them (error models are on)
     assert np.abs(log.ultrasonic - log.extras["ultrasonic_ideal"]).max() > 0
 

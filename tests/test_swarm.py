@@ -11,7 +11,8 @@ from finkensim.behaviours.attraction import settle_distance, settle_reading
 from finkensim.checks import first_difference
 from finkensim.config import Config, ConfigError
 from finkensim.sensors.ranging import RangingModel, ranging_readings
-from finkensim.swarm import SwarmRecord, SwarmSim, _ranging_batch
+from finkensim.behaviours.open_loop import RandomWalk
+from finkensim.swarm import SwarmRecord, SwarmSim, ranging_batch
 from finkensim.world import World
 
 
@@ -72,10 +73,20 @@ def test_random_walk_flies_exactly_as_the_world_rollout():
     cfg = _noisy_cfg("random_walk", "none", n=4)
     sim = SwarmSim(cfg)
     state = sim.init(n_envs=3, seed=8)
-    _, rec = sim.rollout(state, 40, record=("pose", "theta"))
-    _, traj = World(cfg).rollout(state.world, 40, controller="random_walk")
+    _, rec = sim.rollout(state, 40, record=("pose", "vel", "acc", "yaw_rate", "theta"))
+    _, traj = World(cfg).rollout(state.world, 40, RandomWalk(cfg))
     np.testing.assert_array_equal(rec.pose, traj.pose)
     np.testing.assert_array_equal(rec.theta, traj.theta)
+    for name in ("vel", "acc", "yaw_rate"):
+        np.testing.assert_array_equal(getattr(rec, name), getattr(traj, name), err_msg=name)
+    # without sensors (for open-loop behaviours only): the same flight, memory untouched
+    quiet = SwarmSim(cfg, sensors=False)
+    assert quiet.recordable() == ("pose", "vel", "acc", "yaw_rate", "theta", "wall", "cmd_vel", "cmd_yaw_rate")
+    final, rec2 = quiet.rollout(state, 40, record=("pose",))
+    np.testing.assert_array_equal(rec2.pose, traj.pose)
+    assert not final.imu_bias.any() and not final.behaviour.dr_pos.any()
+    with pytest.raises(ConfigError, match="sensors = False"):
+        SwarmSim(_noisy_cfg(), sensors=False)
 
 
 def test_rollout_continues_where_it_stopped():
@@ -133,7 +144,7 @@ def test_ranging_env_equals_ranging_readings(mode):
     beacons = np.array([[0.1, 0.2], [2.9, 3.5]])
     env_ids = np.array([3, 1, 4, 1, 5])
     out = np.empty((5, 4, 6))
-    _ranging_batch(pos, beacons, 9, env_ids, 17, model.params, out)
+    ranging_batch(pos, beacons, 9, env_ids, 17, model.params, out)
     np.testing.assert_array_equal(out, ranging_readings(pos, beacons, 9, env_ids, 17, model))
 
 

@@ -15,7 +15,7 @@ from scipy import stats
 import finkensim.sweep.executors as executors_mod
 from finkensim.cli import main
 from finkensim.config import ConfigError
-from finkensim.episode import _swarm_module, run_episode
+from finkensim.episode import run_episode
 from finkensim.sweep import Sweep, SweepError, plot_summary, run_sweep, summarize
 from finkensim.sweep.summary import factorial_layout
 
@@ -193,14 +193,11 @@ def test_bad_sweep_files_fail_with_a_named_error(edit, message):
 
 def test_closed_loop_behaviours_are_checked_up_front():
     text = SWEEP_TOML.replace("behaviour.speed = [0.2, 0.5]", 'behaviour.kind = ["hover", "attraction_repulsion"]')
-    if _swarm_module() is None:
-        with pytest.raises(SweepError, match=r"behaviour.kind = 'attraction_repulsion'.*finkensim.swarm"):
-            Sweep.from_toml(text)
-    else:  # the swarm rejects attraction-repulsion without sonars: named before any run
-        Sweep.from_toml(text)
-        with pytest.raises(SweepError, match=r"combination 1 \(copters.n=2, behaviour.kind=attraction_repulsion\)"
-                                             r".*needs sonar.enabled = true"):
-            Sweep.from_toml(text.replace("[grid]", "[base.sonar]\nenabled = false\n[grid]"))
+    # the swarm rejects attraction-repulsion without sonars: named before any run
+    Sweep.from_toml(text)
+    with pytest.raises(SweepError, match=r"combination 1 \(copters.n=2, behaviour.kind=attraction_repulsion\)"
+                                         r".*needs sonar.enabled = true"):
+        Sweep.from_toml(text.replace("[grid]", "[base.sonar]\nenabled = false\n[grid]"))
 
 
 @pytest.mark.parametrize("spec, message", [

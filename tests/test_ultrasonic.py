@@ -18,6 +18,7 @@ from finkensim.sensors.ultrasonic import (
     HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, cast_ray, cast_ray_culled, crosstalk_path, down_readings, fire_slots,
     ideal_ultrasonic, plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
 )
+from finkensim.behaviours.open_loop import RandomWalk
 from finkensim.world import World
 from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
 
@@ -173,7 +174,7 @@ def test_every_reading_in_range(sonar):
     cfg, arena, sp = setup(n=6, **sonar)
     world = World(cfg)
     state = world.init(64, seed=5)
-    state, _ = world.rollout(state, 30, "random_walk", record=False)
+    state, _ = world.rollout(state, 30, RandomWalk(cfg), record=False)
     for step in range(3):
         r = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 5, state.env_ids, step)
         assert r.shape == (64, 6, 4) and np.all(r >= 0.2) and np.all(r <= 3.0)
@@ -339,7 +340,7 @@ def test_cone_beam_sees_off_axis_copter():
 def test_same_seed_same_readings_any_batch_and_threads(profile, sonar):
     cfg, arena, sp = setup(n=6, profile=profile, **sonar)
     world = World(cfg)
-    state, _ = world.rollout(world.init(64, seed=11), 20, "random_walk", record=False)
+    state, _ = world.rollout(world.init(64, seed=11), 20, RandomWalk(world.cfg), record=False)
     full = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
     down = down_readings(state.pos, sp, 11, state.env_ids, 20)
     for k in (0, 17, 63):
@@ -364,7 +365,7 @@ def test_trajectory_equals_per_step_readings():
     cfg, arena, sp = setup(n=4)
     world = World(cfg)
     state = world.init(3, seed=4)
-    _, traj = world.rollout(state, 6, "random_walk")
+    _, traj = world.rollout(state, 6, RandomWalk(world.cfg))
     out, dist, kind, hit = ultrasonic_from_trajectory(traj, arena, sp, 4, state.env_ids, 0, return_ideal=True)
     assert out.shape == (6, 3, 4, 4) and hit.shape == (6, 3, 4, 4, 2)
     for t in range(6):

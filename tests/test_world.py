@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from finkensim.behaviours.open_loop import RandomWalk, hover
 from finkensim.behaviours.random_walk import random_walk_env
 from finkensim.checks import check_determinism, first_difference
 from finkensim.config import Config, ConfigError
@@ -92,7 +93,7 @@ def test_copters_stay_inside_and_within_limits(scenario):
 def test_random_walk_rollout_stays_inside(seed, width, length):
     cfg = Config().replace({"arena.width": width, "arena.length": length, "copters.min_separation": 0.2})
     world = World(cfg)
-    final, traj = world.rollout(world.init(n_envs=2, seed=seed), n_steps=200, controller="random_walk")
+    final, traj = world.rollout(world.init(n_envs=2, seed=seed), n_steps=200, controller=RandomWalk(world.cfg))
     r = cfg.copters.radius
     xy = traj.pose[..., :2]
     assert np.all(xy[..., 0] >= r) and np.all(xy[..., 0] <= width - r)
@@ -138,9 +139,9 @@ def test_batch_step_equals_separate_runs():
 def test_batch_rollout_equals_separate_runs():
     world = World()
     B, T = 4, 120
-    final, traj = world.rollout(world.init(n_envs=B, seed=3), T, controller="random_walk")
+    final, traj = world.rollout(world.init(n_envs=B, seed=3), T, controller=RandomWalk(world.cfg))
     for k in range(B):
-        lone_final, lone_traj = world.rollout(world.init(env_ids=[k], seed=3), T, controller="random_walk")
+        lone_final, lone_traj = world.rollout(world.init(env_ids=[k], seed=3), T, controller=RandomWalk(world.cfg))
         _assert_states_equal(lone_final, final.select([k]))
         for name in ("pose", "vel", "acc", "yaw_rate", "theta"):
             np.testing.assert_array_equal(getattr(lone_traj, name)[:, 0], getattr(traj, name)[:, k], err_msg=name)
@@ -207,16 +208,16 @@ def test_rollout_is_pure_and_records_before_each_step():
     world = World()
     state = world.init(n_envs=2, seed=4)
     before = state.copy()
-    final, traj = world.rollout(state, 30, controller="random_walk")
+    final, traj = world.rollout(state, 30, controller=RandomWalk(world.cfg))
     _assert_states_equal(state, before)
     assert final.step == 30
     np.testing.assert_array_equal(traj.pose[0], state.pose)
     np.testing.assert_allclose(traj.t, np.arange(30) * world.dt)
     # continuing from the final state is the same as one longer rollout
-    f2, _ = world.rollout(final, 20, controller="random_walk")
-    f_all, _ = world.rollout(state, 50, controller="random_walk")
+    f2, _ = world.rollout(final, 20, controller=RandomWalk(world.cfg))
+    f_all, _ = world.rollout(state, 50, controller=RandomWalk(world.cfg))
     _assert_states_equal(f2, f_all)
-    none_final, none_traj = world.rollout(state, 30, controller="random_walk", record=False)
+    none_final, none_traj = world.rollout(state, 30, controller=RandomWalk(world.cfg), record=False)
     assert none_traj is None
     _assert_states_equal(none_final, final)
 
@@ -334,15 +335,15 @@ def _random_walk_controller(world, state):
     B, N = state.n_envs, state.n_copters
     cmd_v, cmd_w = np.zeros((B, N, 2)), np.zeros((B, N))
     for b in range(B):
-        random_walk_env(state.pos[b], state.seed, state.env_ids[b], state.step, world.random_walk_params,
+        random_walk_env(state.pos[b], state.seed, state.env_ids[b], state.step, RandomWalk(world.cfg).params,
                         cmd_v[b], cmd_w[b])
     return cmd_v, cmd_w
 
 
-def test_callable_controller_equals_compiled_random_walk():
+def test_random_walk_controller_equals_the_per_environment_kernel():
     world = World()
     state = world.init(n_envs=3, seed=9)
-    compiled_final, compiled_traj = world.rollout(state, 80, controller="random_walk")
+    compiled_final, compiled_traj = world.rollout(state, 80, controller=RandomWalk(world.cfg))
     py_final, py_traj = world.rollout(state, 80, controller=_random_walk_controller)
     _assert_states_equal(py_final, compiled_final)
     for name in ("t", "pose", "vel", "acc", "yaw_rate", "theta"):
@@ -352,7 +353,7 @@ def test_callable_controller_equals_compiled_random_walk():
 def test_hover_controller_keeps_copters_still():
     world = World()
     state = world.init(n_envs=2, seed=1)
-    final, _ = world.rollout(state, 40, controller="hover")
+    final, _ = world.rollout(state, 40, controller=hover)
     np.testing.assert_array_equal(final.pos, state.pos)
 
 
@@ -394,8 +395,8 @@ def world_and_state():
     (lambda w, s: w.step(s, 1.0), "cmd_vel"),  # scalar: not a velocity
     (lambda w, s: w.step(s, np.full((2, 6, 2), np.nan)), "cmd_vel"),
     (lambda w, s: w.step(s, np.zeros((2, 6, 2)), np.full((2, 6), np.inf)), "cmd_yaw_rate"),
-    (lambda w, s: w.rollout(s, -1), "n_steps"),
-    (lambda w, s: w.rollout(s, 2.5), "n_steps"),
+    (lambda w, s: w.rollout(s, -1, hover), "n_steps"),
+    (lambda w, s: w.rollout(s, 2.5, hover), "n_steps"),
     (lambda w, s: w.rollout(s, 3, controller="dance"), "controller"),
     (lambda w, s: w.init(n_envs=1, positions=[[[5.0, 1.0]] * 6]), "positions"),
     (lambda w, s: w.init(n_envs=1, positions=[[[0.0, 1.0]] * 6]), "positions"),  # centre on the wall line

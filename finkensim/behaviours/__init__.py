@@ -5,7 +5,8 @@ Built in (``behaviour.kind`` in the config), all compiled into the closed loop o
 
 - ``attraction_repulsion`` (:mod:`.attraction`): the original FINken controller on the four sonar
   readings, Δ = w_c · Σ p_j (a − b exp(−|p_j|²/c)) + w_t · a · target;
-- ``random_walk`` (:mod:`.random_walk`) and ``hover``: open-loop references;
+- ``random_walk`` (:mod:`.random_walk`) and ``hover``: open-loop references (also as
+  :meth:`World.rollout <finkensim.world.World.rollout>` controllers in :mod:`.open_loop`);
 - the wall plausibility checks ``behaviour.wall_check = "per_reading" | "sequence"`` (:mod:`.wall_check`)
   that drop readings judged to be walls from attraction.
 

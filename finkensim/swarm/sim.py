@@ -1,0 +1,267 @@
+"""The Python API of the closed swarm loop: :class:`SwarmSim` (see :mod:`finkensim.swarm` for the contract)."""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..behaviours.attraction import AttractionParams, attraction_repulsion, body_to_world
+from ..behaviours.open_loop import OPEN_LOOP_BEHAVIOURS, random_walk_batch
+from ..behaviours.random_walk import RandomWalkParams
+from ..behaviours.wall_check import WALL_CHECK_NONE, WALL_CHECK_SEQUENCE, BehaviourState, WallCheckParams, \
+    dead_reckon, wall_check
+from ..config import Config, ConfigError, load_config
+from ..sensors.imu import ImuModel, imu_step
+from ..sensors.ranging import RangingModel, ranging_readings
+from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic_readings
+from ..world import World
+from .kernel import swarm_rollout
+from .state import KIND_ATTRACTION, KIND_CODES, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SENSOR_OF, \
+    Recording, RunSpec, SensorReadings, SwarmRecord, SwarmState
+
+__all__ = ["SwarmSim", "needs_sensors"]
+
+
+def needs_sensors(kind) -> bool:
+    """True when ``behaviour.kind`` (or a Python behaviour function) is a closed-loop controller that reads
+    sensors; False for the open-loop ``"random_walk"`` and ``"hover"``."""
+    return callable(kind) or kind not in OPEN_LOOP_BEHAVIOURS
+
+
+class SwarmSim:
+    """A configured swarm: world, sensor models and behaviour, with compiled and per-step stepping.
+
+    Args:
+        cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
+        behaviour: None (``behaviour.kind`` from the config), one of ``"hover"``, ``"random_walk"``,
+            ``"attraction_repulsion"``, or a Python function ``f(readings, memory, params)`` (module doc).
+        params: the ``params`` passed to a Python behaviour (default ``cfg.behaviour``).
+        command_frame: ``"body"`` (default) or ``"world"``: the frame of a Python behaviour's velocity.
+        memory_factory: ``(n_envs, n_copters) -> object``, a Python behaviour's initial memory.
+        sensors: False runs no sensor at all (only for the open-loop ``"random_walk"`` and ``"hover"``,
+            which read none): faster when only the flight matters; the IMU bias and behaviour memory of
+            the state then stay as they are.
+
+    Attributes: ``world`` (:class:`~finkensim.world.World`), ``sonar`` (SonarModel), ``ranging``
+    (RangingModel), ``imu`` (ImuModel), ``attraction`` (AttractionParams), ``wall_check``
+    (WallCheckParams), ``random_walk`` (RandomWalkParams), ``beacons`` (M, 2) m, ``kind`` (str or the
+    function), ``enabled`` (sensor → bool).
+    """
+
+    def __init__(self, cfg: Config | str | dict | None = None, behaviour: str | Callable | None = None,
+                 params: Any = None, command_frame: str = "body", memory_factory: Callable | None = None,
+                 sensors: bool = True):
+        self.cfg = cfg if isinstance(cfg, Config) else load_config(cfg)
+        c = self.cfg
+        self.world = World(c)
+        self.dt = self.world.dt
+        self.sonar = SonarModel.from_config(c)
+        self.ranging = RangingModel.from_config(c.ranging)
+        self.imu = ImuModel.from_config(c.imu, self.dt)
+        self.attraction = AttractionParams.from_config(c)
+        self.wall_check = WallCheckParams.from_config(c)
+        self.random_walk = RandomWalkParams.from_config(c.behaviour, c.arena.width, c.arena.length)
+        self.beacons = np.ascontiguousarray(np.asarray(c.ranging.beacons, dtype=np.float64).reshape(-1, 2))
+        kind = c.behaviour.kind if behaviour is None else behaviour
+        if callable(kind):
+            self.kind_code = KIND_PYTHON
+        elif kind in KIND_CODES:
+            self.kind_code = KIND_CODES[kind]
+        else:
+            raise ConfigError(f"behaviour = {kind!r}: expected one of {', '.join(map(repr, KIND_CODES))} "
+                              "or a function f(readings, memory, params)")
+        self.kind = kind
+        if command_frame not in ("body", "world"):
+            raise ConfigError(f"command_frame = {command_frame!r}: expected 'body' or 'world'")
+        self.command_frame = command_frame
+        self.params = c.behaviour if params is None else params
+        self.memory_factory = memory_factory
+        self.enabled = {"sonar": bool(c.sonar.enabled), "down": bool(c.sonar.enabled and c.sonar.down_enabled),
+                        "ranging": bool(c.ranging.enabled), "imu": bool(c.imu.enabled)}
+        if not sensors:
+            if needs_sensors(kind):
+                raise ConfigError(f"sensors = False: behaviour {getattr(kind, '__name__', kind)!r} reads sensors; "
+                                  f"expected one of {', '.join(map(repr, OPEN_LOOP_BEHAVIOURS))}")
+            self.enabled = dict.fromkeys(self.enabled, False)
+        if self.kind_code == KIND_ATTRACTION and not self.enabled["sonar"]:
+            raise ConfigError("behaviour.kind = 'attraction_repulsion' needs sonar.enabled = true")
+        if sensors and self.wall_check.mode != WALL_CHECK_NONE:
+            need = [("sonar.enabled", self.enabled["sonar"]), ("ranging.enabled", self.enabled["ranging"])]
+            if self.wall_check.mode == WALL_CHECK_SEQUENCE:
+                need.append(("imu.enabled", self.enabled["imu"]))
+            for key, ok in need:
+                if not ok:
+                    raise ConfigError(f"behaviour.wall_check = {c.behaviour.wall_check!r} needs {key} = true")
+
+    @property
+    def n_copters(self) -> int:
+        return self.cfg.copters.n
+
+    def recordable(self) -> tuple[str, ...]:
+        """Names :meth:`rollout` can record with this config (see :data:`RECORDABLE`)."""
+        return tuple(name for name in RECORDABLE if name not in SENSOR_OF or self.enabled[SENSOR_OF[name]])
+
+    def init(self, n_envs: int | None = None, seed: int | None = None, env_ids=None, positions=None, yaw=None,
+             memory: Any = None) -> SwarmState:
+        """Initial state: :meth:`World.init <finkensim.world.World.init>` (same arguments), zero IMU bias,
+        empty behaviour memory (dead reckoning at 0, no flags), and a Python behaviour's ``memory``."""
+        ws = self.world.init(n_envs=n_envs, seed=seed, env_ids=env_ids, positions=positions, yaw=yaw)
+        B, N = ws.n_envs, ws.n_copters
+        if memory is None:
+            memory = self.memory_factory(B, N) if self.memory_factory is not None else {}
+        return SwarmState(world=ws, imu_bias=np.zeros((B, N, 3)), behaviour=BehaviourState.zeros(B, N, N_SONARS),
+                          memory=memory)
+
+    # -- one step through the batched functions (the reference path; also runs Python behaviours) --
+
+    def sense(self, state: SwarmState) -> tuple[SensorReadings, np.ndarray, BehaviourState]:
+        """Sensor readings of ``state`` (its step), plus the advanced IMU bias and behaviour memory
+        (new arrays; ``state`` is unchanged)."""
+        return self._sense(state)[:3]
+
+    def _sense(self, state: SwarmState):
+        """:meth:`sense` plus the sonars' ideal distances and hit types ((B, N, 4) each; None, None when off)."""
+        ws = state.world
+        k, seed, env_ids = ws.step, ws.seed, ws.env_ids
+        B, N = ws.n_envs, ws.n_copters
+        on = self.enabled
+        sonar = ideal = hit = None
+        if on["sonar"]:
+            sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
+                                                       env_ids, k, return_ideal=True)
+        down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
+        rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging) if on["ranging"] else None
+        bias = state.imu_bias.copy()
+        mem = state.behaviour.copy()
+        imu_acc = imu_gyro = None
+        if on["imu"]:
+            imu_acc, imu_gyro = imu_step(ws.acc, ws.yaw, ws.yaw_rate, bias, self.imu, seed, env_ids, k)
+            dead_reckon(imu_acc, imu_gyro, mem, self.wall_check)
+        if on["sonar"]:
+            rng_in = rng if rng is not None else np.zeros((B, N, N + self.beacons.shape[0]))
+            wall = wall_check(sonar, rng_in, self.wall_check, mem)
+        else:
+            wall = mem.wall.copy()
+        readings = SensorReadings(sonar=sonar, sonar_down=down, ranging=rng, imu_acc=imu_acc, imu_gyro=imu_gyro,
+                                  wall=wall, step=k, dt=self.dt, seed=seed, env_ids=env_ids.copy())
+        return readings, bias, mem, ideal, hit
+
+    def commands(self, state: SwarmState, readings: SensorReadings) -> tuple[np.ndarray, np.ndarray]:
+        """World-frame commands (cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) rad/s) of the behaviour."""
+        ws = state.world
+        B, N = ws.n_envs, ws.n_copters
+        if self.kind_code == KIND_ATTRACTION:
+            v_body, w = attraction_repulsion(readings.sonar, ws.seed, ws.env_ids, ws.step, self.attraction,
+                                             readings.wall)
+            return body_to_world(ws.yaw, v_body), w
+        if self.kind_code == KIND_RANDOM_WALK:
+            v = np.zeros((B, N, 2))
+            w = np.zeros((B, N))
+            random_walk_batch(np.ascontiguousarray(ws.pos), int(ws.seed), ws.env_ids, int(ws.step), self.random_walk,
+                              v, w)
+            return v, w
+        if self.kind_code == KIND_HOVER:
+            return np.zeros((B, N, 2)), np.zeros((B, N))
+        out = self.kind(readings, state.memory, self.params)
+        if not isinstance(out, tuple) or len(out) != 2:
+            raise ConfigError(f"behaviour {getattr(self.kind, '__name__', self.kind)!r} returned "
+                              f"{type(out).__name__}: expected a tuple (cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) "
+                              "rad/s or None)")
+        v, w = out
+        v, w = self.world.check_commands(ws, v, w)
+        if self.command_frame == "body":
+            v = body_to_world(ws.yaw, v)
+        return v, w
+
+    def step(self, state: SwarmState) -> tuple[SwarmState, SensorReadings, tuple[np.ndarray, np.ndarray]]:
+        """One closed-loop step through the batched functions: (new state, readings, (cmd_vel, cmd_yaw_rate)).
+
+        Pure for the arrays (``state`` is left unchanged); a Python behaviour may mutate ``state.memory``,
+        which the new state shares.
+        """
+        return self._step(state)[:3]
+
+    def _step(self, state: SwarmState):
+        """:meth:`step` plus the sonars' ideal distances and hit types of :meth:`_sense`."""
+        readings, bias, mem, ideal, hit = self._sense(state)
+        cmd_v, cmd_w = self.commands(state, readings)
+        ws = self.world.step(state.world, cmd_v, cmd_w)
+        new = SwarmState(world=ws, imu_bias=bias, behaviour=mem, memory=state.memory)
+        return new, readings, (cmd_v, cmd_w), ideal, hit
+
+    # -- many steps --
+
+    def _record_names(self, record) -> tuple[str, ...]:
+        avail = self.recordable()
+        if record is True:
+            return avail
+        if record is False or record is None:
+            return ()
+        names = (record,) if isinstance(record, str) else tuple(record)
+        for name in names:
+            if name not in RECORDABLE:
+                raise ConfigError(f"record: unknown name {name!r}; expected True, False or names from "
+                                  f"{', '.join(RECORDABLE)}")
+            if name not in avail:
+                raise ConfigError(f"record: {name!r} is not available because its sensor is disabled "
+                                  f"({SENSOR_OF[name]})")
+        return names
+
+    def rollout(self, state: SwarmState, n_steps: int, record: bool | str | Iterable[str] = True,
+                python: bool = False) -> tuple[SwarmState, SwarmRecord]:
+        """Run ``n_steps`` closed-loop steps; returns (final state, :class:`SwarmRecord`). ``state`` is unchanged.
+
+        ``record``: True (everything available), False (only the per-episode counters), or names from
+        :data:`RECORDABLE`. Built-in behaviours run in one compiled kernel; a Python behaviour (or
+        ``python=True``) loops over :meth:`step`.
+        """
+        if not isinstance(n_steps, (int, np.integer)) or isinstance(n_steps, bool) or n_steps < 0:
+            raise ConfigError(f"n_steps = {n_steps!r}: expected a non-negative integer")
+        names = self._record_names(record)
+        T = int(n_steps)
+        ws0 = state.world
+        B, N, S, R = ws0.n_envs, ws0.n_copters, self.world.arena.n_plates, ws0.n_copters + self.beacons.shape[0]
+        shapes = {"pose": (B, N, 3), "vel": (B, N, 2), "acc": (B, N, 2), "yaw_rate": (B, N), "theta": (B, S),
+                  "sonar": (B, N, N_SONARS), "sonar_ideal": (B, N, N_SONARS), "sonar_hit": (B, N, N_SONARS),
+                  "sonar_down": (B, N), "ranging": (B, N, R), "imu_acc": (B, N, 2), "imu_gyro": (B, N),
+                  "wall": (B, N, N_SONARS), "cmd_vel": (B, N, 2), "cmd_yaw_rate": (B, N)}
+        dtypes = {"wall": np.bool_, "sonar_hit": np.int64}
+        rec = {name: np.zeros(((T if name in names else 0),) + shapes[name], dtype=dtypes.get(name, np.float64))
+               for name in RECORDABLE}
+        if self.kind_code == KIND_PYTHON or python:
+            new = self._python_rollout(state, T, names, rec)
+        else:
+            new = state.copy()
+            w = new.world
+            run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, self.kind_code, float(self.dt),
+                          self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"])
+            swarm_rollout(w.arrays(), new.memory_arrays(), run, Recording(**rec), self.world.copter_params,
+                          self.world.hinge_params, self.world.geometry, self.sonar, self.ranging.params, self.beacons,
+                          self.imu, self.random_walk, self.attraction, self.wall_check)
+            new = replace(new, world=replace(w, step=w.step + T))
+        counters = {
+            "collisions": new.world.collisions - ws0.collisions,
+            "wall_contacts": new.world.wall_contacts - ws0.wall_contacts,
+            "wall_onsets": new.behaviour.wall_onsets - state.behaviour.wall_onsets,
+            "wall_readings": new.behaviour.wall_readings - state.behaviour.wall_readings,
+        }
+        out = {name: rec[name] for name in names}
+        return new, SwarmRecord(t=(ws0.step + np.arange(T)) * self.dt, counters=counters, **out)
+
+    def _python_rollout(self, state: SwarmState, T: int, names, rec: dict) -> SwarmState:
+        """T steps through :meth:`step`, filling ``rec[name][t]`` for the recorded ``names``."""
+        new = state
+        for t in range(T):
+            ws = new.world
+            before = (("pose", ws.pose), ("vel", ws.vel), ("acc", ws.acc), ("yaw_rate", ws.yaw_rate),
+                      ("theta", ws.theta))
+            new, readings, (cmd_v, cmd_w), ideal, hit = self._step(new)
+            for name, value in before + (
+                    ("sonar", readings.sonar), ("sonar_ideal", ideal), ("sonar_hit", hit),
+                    ("sonar_down", readings.sonar_down), ("ranging", readings.ranging),
+                    ("imu_acc", readings.imu_acc), ("imu_gyro", readings.imu_gyro), ("wall", readings.wall),
+                    ("cmd_vel", cmd_v), ("cmd_yaw_rate", cmd_w)):
+                if name in names:
+                    rec[name][t] = value
+        return state.copy() if T == 0 else new
