@@ -75,7 +75,7 @@ def as_array(name: str, value: Any, dtype=np.float64, shape: Sequence[Dim] | Non
     if finite and a.dtype.kind == "f" and not np.all(np.isfinite(a)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
         where = f"[{', '.join(map(str, bad))}]" if bad else ""
-        raise ConfigError(f"{name}{where} = {a[bad]!r}: expected finite values{_unit(unit)}")
+        raise ConfigError(f"{name}{where} = {a[bad].item()!r}: expected finite values{_unit(unit)}")
     return a
 
 

@@ -32,8 +32,8 @@ def test_as_array_converts_without_copying_good_input():
     (np.zeros((2, 3, 3)), ("B", "N", 2), {}, r"x has shape \(2, 3, 3\): expected \(B, N, 2\)"),
     (np.zeros((2, 3)), ("N", "N"), {}, r"shape \(2, 3\): expected \(N, N\)"),
     (np.zeros((2, 3)), ("B", 3), {"sizes": {"B": 4}}, r"expected \(B, 3\) m = \(4, 3\)|expected \(B, 3\) = \(4, 3\) m"),
-    ([[1.0, np.nan]], ("N", 2), {"finite": True}, r"x\[0, 1\] = .*nan.*: expected finite values m"),
-    ([1.0, np.inf], None, {"finite": True}, r"x\[1\] = .*inf"),
+    ([[1.0, np.nan]], ("N", 2), {"finite": True}, r"x\[0, 1\] = nan: expected finite values m"),
+    ([1.0, np.inf], None, {"finite": True}, r"x\[1\] = inf: expected finite values m"),
     ("abc", ("N",), {}, r"x = 'abc': expected an array of numbers \(N,\) m"),
     ([[1.0, 2.0], [3.0]], None, {}, r"expected an array of numbers"),
     (None, ("N",), {}, r"x = None"),
@@ -63,7 +63,7 @@ def test_as_vectors_and_points():
         as_vectors("acc", np.ones((4, 2)), 3)
     p = as_points("positions", np.ones((2, 5, 2)), ("B", "N"))
     assert p.shape == (2, 5, 2) and p.dtype == np.float64
-    with pytest.raises(ConfigError, match=r"positions\[0, 1, 0\] = .*nan.*finite values m"):
+    with pytest.raises(ConfigError, match=r"positions\[0, 1, 0\] = nan: expected finite values m"):
         as_points("positions", [[[0.0, 0.0], [np.nan, 1.0]]], ("B", "N"))
     with pytest.raises(ConfigError, match=r"beacons has shape \(3,\): expected \(M, 2\) m"):
         as_points("beacons", [1.0, 2.0, 3.0], ("M",), allow_empty=True)

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from finkensim.config import RangingConfig
+from finkensim.config import ConfigError, RangingConfig
 from finkensim.sensors.mixture import Mixture, MixtureError
 from finkensim.sensors.ranging import RangingModel, ideal_ranges, ranging_readings
 from finkensim.sensors.ranging_table import ResponsibilityTable
@@ -115,6 +115,15 @@ def test_input_errors(models):
         ranging_readings(np.zeros((1, 3, 2)), [1.0, 2.0, 3.0], 0, [0], 0, models["none"])
     with pytest.raises(ValueError, match="ranging.error"):
         RangingModel("gauss")
+    # the array checks of finkensim.arrays: ConfigError (a ValueError) naming the array
+    with pytest.raises(ConfigError, match=r"positions\[0, 1, 0\] = .*nan"):
+        ranging_readings(np.array([[[0.0, 0.0], [np.nan, 0.0]]]), (), 0, [0], 0, models["none"])
+    with pytest.raises(ConfigError, match=r"out is a float64 array of shape \(1, 3, 2\): expected .* \(1, 3, 3\)"):
+        ranging_readings(np.zeros((1, 3, 2)), (), 0, [0], 0, models["none"], out=np.empty((1, 3, 2)))
+    with pytest.raises(ConfigError, match=r"env_ids = \[0.5\]: expected integers"):
+        ranging_readings(np.zeros((1, 3, 2)), (), 0, [0.5], 0, models["none"])
+    with pytest.raises(ConfigError, match=r"x \(flattened\)\[1\] = -0.1"):
+        models["none"].sample([0.5, -0.1])
 
 
 # ---------------------------------------------------------------- numba == NumPy reference

@@ -31,7 +31,8 @@ analytic laws); :mod:`finkensim.sensors.ranging_table` the alias tables the ``mi
 components from (:class:`ResponsibilityTable`, how exact they are); :mod:`finkensim.sensors.ranging_kernels`
 the numba kernels (the per-reading rule :func:`~finkensim.sensors.ranging_kernels.ranging_reading`,
 one environment :func:`~finkensim.sensors.ranging_kernels.ranging_env`) and the random-number layout.
-This module builds the kernels' parameters and is the batched public API.
+This module builds the kernels' parameters and is the batched public API; it re-exports
+:class:`Mixture`, :class:`MixtureError`, :class:`ResponsibilityTable` and the ``MODE_*`` codes.
 
 **Params.** :class:`RangingModel` (``RangingModel.from_config(cfg.ranging)``) holds the mode, the
 mixture, the table and ``params``: a :class:`~finkensim.sensors.ranging_kernels.RangingParams` record
@@ -47,7 +48,8 @@ import math
 
 import numpy as np
 
-from ..arrays import as_env_ids, as_points, check_inplace
+from ..arrays import as_array, as_env_ids, as_points, check_inplace
+from ..config import ConfigError
 from .mixture import Mixture, MixtureError
 from .ranging_kernels import (MODE_GAUSSIAN, MODE_MIXTURE, MODE_NONE, MODE_SEED, MODES, RangingParams,
                               fast_reading, ranging_batch, row_key, sample_readings, seed_reading)
@@ -133,10 +135,12 @@ class RangingModel:
     def sample(self, x, seed: int = 0, env: int = 0, step: int = 0, copter: int = 0) -> np.ndarray:
         """Readings, m, for true distances ``x`` m (any shape; element j of the flattened array uses reading
         column j of copter ``copter``'s key), with the same rules as :func:`ranging_readings`."""
-        x = np.asarray(x, dtype=np.float64)
-        xs = np.ascontiguousarray(x.ravel())
-        if np.any(~(xs >= 0)):
-            raise ValueError("true distances must be finite and >= 0")
+        x = as_array("x", x, np.float64, unit="m")
+        xs = x.ravel()
+        bad = np.flatnonzero(~(xs >= 0))
+        if bad.size:
+            raise ConfigError(f"x (flattened)[{bad[0]}] = {xs[bad[0]].item()!r}: expected true distances >= 0 m "
+                              f"(+inf reads max_range)")
         out = np.empty_like(xs)
         sample_readings(xs, row_key(seed, env, step, copter), self.params, out)
         return out.reshape(x.shape)
