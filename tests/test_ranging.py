@@ -11,16 +11,18 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from finkensim.config import RangingConfig
-from finkensim.sensors.ranging import (
-    Mixture,
-    MixtureError,
-    RangingModel,
-    ResponsibilityTable,
-    ideal_ranges,
-    ranging_readings,
+from finkensim.config import ConfigError, RangingConfig
+from finkensim.sensors.mixture import Mixture, MixtureError
+from finkensim.sensors.ranging import RangingModel, ideal_ranges, ranging_readings
+from finkensim.sensors.ranging_table import ResponsibilityTable
+from finkensim.sensors.ranging_kernels import ranging_env, row_key
+from finkensim.sensors.ranging_table import build_alias
+from tests.naive.ranging import (
+    naive_build_alias,
+    naive_pick_components,
+    naive_ranging_readings,
+    naive_sample,
 )
-from tests.naive.ranging import naive_ranging_readings, naive_sample
 
 SHARED_JSON = Path(__file__).resolve().parents[2] / "shared" / "data" / "vranging_gmm.json"
 MODES = ("mixture", "seed", "gaussian", "none")
@@ -113,6 +115,15 @@ def test_input_errors(models):
         ranging_readings(np.zeros((1, 3, 2)), [1.0, 2.0, 3.0], 0, [0], 0, models["none"])
     with pytest.raises(ValueError, match="ranging.error"):
         RangingModel("gauss")
+    # the array checks of finkensim.arrays: ConfigError (a ValueError) naming the array
+    with pytest.raises(ConfigError, match=r"positions\[0, 1, 0\] = .*nan"):
+        ranging_readings(np.array([[[0.0, 0.0], [np.nan, 0.0]]]), (), 0, [0], 0, models["none"])
+    with pytest.raises(ConfigError, match=r"out is a float64 array of shape \(1, 3, 2\): expected .* \(1, 3, 3\)"):
+        ranging_readings(np.zeros((1, 3, 2)), (), 0, [0], 0, models["none"], out=np.empty((1, 3, 2)))
+    with pytest.raises(ConfigError, match=r"env_ids = \[0.5\]: expected integers"):
+        ranging_readings(np.zeros((1, 3, 2)), (), 0, [0.5], 0, models["none"])
+    with pytest.raises(ConfigError, match=r"x \(flattened\)\[1\] = -0.1"):
+        models["none"].sample([0.5, -0.1])
 
 
 # ---------------------------------------------------------------- numba == NumPy reference
@@ -159,6 +170,49 @@ def test_sample_equals_reference_at_grid_edges(models, mode):
     want = naive_sample(model, xs, seed=99, env=4, step=5, copter=2)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
     assert np.all(got[xs > 2.5] == 2.5)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_ranging_env_equals_reference(models, mode):
+    """The per-environment kernel called on its own (the batched kernel and compiled loops inline it)."""
+    rng = np.random.default_rng(12)
+    pos = rng.uniform(-0.5, 3.0, (1, 5, 2))
+    beacons = rng.uniform(0.0, 3.0, (2, 2))
+    out = np.full((5, 7), np.nan)
+    ranging_env(pos[0], beacons, np.int64(21), np.int64(9), np.int64(4), models[mode].params, out)
+    want = naive_ranging_readings(pos, beacons, 21, [9], 4, models[mode])[0]
+    np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 if mode == "seed" else 0)
+
+
+def test_build_alias_equals_reference(models):
+    table = models["mixture"].table
+    rows = np.linspace(0.0, 2.5, 37)
+    p = models["mixture"].mixture.responsibilities(rows)
+    rng = np.random.default_rng(13)
+    q = rng.dirichlet(np.full(7, 0.3), 50)
+    q[0] = 0.0
+    q[0, 3] = 1.0  # a point mass
+    q[1] = 1.0 / 7  # uniform: every column is its own alias
+    for dist in (p, q):
+        prob = np.empty(dist.shape)
+        alias = np.empty(dist.shape, dtype=np.int32)
+        build_alias(dist, prob, alias)
+        want_prob, want_alias = naive_build_alias(dist)
+        np.testing.assert_array_equal(prob, want_prob)
+        np.testing.assert_array_equal(alias, want_alias)
+    # the model's table holds exactly these tables at its nodes
+    want_prob, want_alias = naive_build_alias(table.mixture.responsibilities(np.linspace(0.0, 2.5, table.n_nodes)))
+    np.testing.assert_array_equal(table.prob, want_prob)
+    np.testing.assert_array_equal(table.alias, want_alias)
+
+
+def test_pick_components_equals_reference(models):
+    table = models["mixture"].table
+    xs = np.concatenate([np.arange(40) * table.h, (np.arange(40) + 0.5) * table.h, [2.5 - 1e-12, 2.5],
+                         np.random.default_rng(14).uniform(0.0, 2.5, 300)])
+    got = table.sample_components(xs, seed=5, env=6, step=7, copter=8)
+    np.testing.assert_array_equal(got, naive_pick_components(table, xs, seed=5, env=6, step=7, copter=8))
+    assert row_key(5, 6, 7, 8) != row_key(5, 6, 7, 9)
 
 
 # ---------------------------------------------------------------- reproducibility

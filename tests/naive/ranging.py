@@ -1,4 +1,5 @@
-"""Plain-NumPy reference of the virtual-ranging sensor (``finkensim.sensors.ranging``), for tests only.
+"""Plain-NumPy reference of the virtual-ranging sensor, for tests only: the batched API
+(``finkensim.sensors.ranging``), its kernels (``ranging_kernels``) and the alias tables (``ranging_table``).
 
 Readable loops, no numba of its own. It consumes the same counter-based random numbers as the
 kernel, taken from ``finkensim.kernels.rng.uniforms_array`` / ``normals_array`` (one row of
@@ -98,3 +99,37 @@ def naive_sample(model, x, seed=0, env=0, step=0, copter=0):
     xs = np.asarray(x, dtype=np.float64).ravel()
     u, z = naive_row_numbers(model, seed, env, step, copter, xs.size)
     return np.array([naive_reading(xs[j], j, model, u, z) for j in range(xs.size)]).reshape(np.shape(x))
+
+
+def naive_build_alias(p):
+    """Reference of ``ranging_table.build_alias``: Vose's alias tables (prob, alias) of every row of ``p`` (G, K).
+
+    The same stack discipline as the kernel (last in, first out; leftovers get probability 1), so the
+    tables agree exactly, not only in the distributions they encode.
+    """
+    p = np.asarray(p, dtype=np.float64)
+    n_rows, k = p.shape
+    prob = np.empty((n_rows, k))
+    alias = np.empty((n_rows, k), dtype=np.int32)
+    for g in range(n_rows):
+        q = [float(v) * k for v in p[g]]
+        small = [i for i in range(k) if q[i] < 1.0]
+        large = [i for i in range(k) if q[i] >= 1.0]
+        while small and large:
+            s = small.pop()
+            big = large.pop()
+            prob[g, s] = q[s]
+            alias[g, s] = big
+            q[big] = (q[big] + q[s]) - 1.0
+            (small if q[big] < 1.0 else large).append(big)
+        for i in large + small:  # leftovers are 1 up to rounding
+            prob[g, i] = 1.0
+            alias[g, i] = i
+    return prob, alias
+
+
+def naive_pick_components(table, xs, seed=0, env=0, step=0, copter=0):
+    """Reference of ``ResponsibilityTable.sample_components``: the component of column j for true distance xs[j]."""
+    xs = np.asarray(xs, dtype=np.float64).ravel()
+    u = uniforms_array(seed, env, step, copter, STREAM_RANGING, 4 * xs.size)
+    return np.array([naive_pick_component(x, u[4 * j], u[4 * j + 1], table) for j, x in enumerate(xs)], dtype=np.int64)
