@@ -325,3 +325,30 @@ class Arena:
         """Largest angle (rad) the motor can hold against gravity: asin(joint_force / (m g L/2)), capped at π/2."""
         r = self.hinge.joint_force / self.hinge.gravity_torque
         return float(np.arcsin(min(1.0, r)))
+
+
+class WallGeometry(NamedTuple):
+    """The arena as the kernels see it (the world step, the sonar ray cast, the gap replay).
+
+    seg_a, seg_b (S, 2) m: each plate's full-pitch rest line (for body distances); plate_a, plate_b
+    (S, 2) m: the plate's own width; normal (S, 2): unit inward normals; lever m: hinge height −
+    altitude; width, length m: the arena rectangle.
+    """
+
+    seg_a: np.ndarray
+    seg_b: np.ndarray
+    plate_a: np.ndarray
+    plate_b: np.ndarray
+    normal: np.ndarray
+    lever: float
+    width: float
+    length: float
+
+
+def wall_geometry(arena) -> WallGeometry:
+    """:class:`WallGeometry` of an :class:`Arena` (a WallGeometry is returned as is)."""
+    if isinstance(arena, WallGeometry):
+        return arena
+    f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
+    return WallGeometry(f(arena.seg_a), f(arena.seg_b), f(arena.plate_a), f(arena.plate_b), f(arena.normal),
+                        float(arena.lever), float(arena.width), float(arena.length))

@@ -18,7 +18,7 @@ ready-made open-loop controllers for :meth:`World.rollout` are in :mod:`finkensi
 
 Kernels take the state and the static model as flat NamedTuple records: :class:`WorldArrays` (the
 state arrays), :class:`~finkensim.copters.CopterParams` (body), :class:`~finkensim.arena.HingeParams`
-(hinges) and :class:`Geometry` (wall segments and plates).
+(hinges) and :class:`~finkensim.arena.WallGeometry` (wall segments and plates).
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from .arena import Arena, HingeParams, walls_step_env
+from .arena import Arena, HingeParams, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.geometry import nearest_body_distance_within_env
@@ -56,30 +56,6 @@ class WorldArrays(NamedTuple):
     in_collision: np.ndarray
     wall_contacts: np.ndarray
     collisions: np.ndarray
-
-
-class Geometry(NamedTuple):
-    """The arena as the kernels need it (from :class:`~finkensim.arena.Arena`).
-
-    seg_a, seg_b (S, 2) m: each plate's full-pitch rest line (for body distances); plate_a, plate_b
-    (S, 2) m: the plate's own width; normal (S, 2): unit inward normals; lever m: hinge height −
-    altitude; width, length m: the arena rectangle.
-    """
-
-    seg_a: np.ndarray
-    seg_b: np.ndarray
-    plate_a: np.ndarray
-    plate_b: np.ndarray
-    normal: np.ndarray
-    lever: float
-    width: float
-    length: float
-
-    @classmethod
-    def from_arena(cls, arena: Arena) -> "Geometry":
-        f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
-        return cls(f(arena.seg_a), f(arena.seg_b), f(arena.plate_a), f(arena.plate_b), f(arena.normal),
-                   float(arena.lever), float(arena.width), float(arena.length))
 
 
 @dataclass(frozen=True)
@@ -165,7 +141,7 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf):
 
     cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; cp
     :class:`~finkensim.copters.CopterParams`, hp :class:`~finkensim.arena.HingeParams`, geo
-    :class:`Geometry`; dist_buf (S,) and gap_buf (N,) are work buffers. The plates need the
+    :class:`~finkensim.arena.WallGeometry`; dist_buf (S,) and gap_buf (N,) are work buffers. The plates need the
     nearest-body distance only below max(threshold, lever): farther, a plate is inactive and its
     contact cap is 90° whatever the distance, so dist_buf holds the exact distances below that and inf
     above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
@@ -230,7 +206,7 @@ class World:
 
     Attributes: ``cfg``; ``arena`` (:class:`~finkensim.arena.Arena`); the kernel records ``copter_params``
     (:class:`~finkensim.copters.CopterParams`), ``hinge_params`` (:class:`~finkensim.arena.HingeParams`) and
-    ``geometry`` (:class:`Geometry`); ``dt`` s.
+    ``geometry`` (:class:`~finkensim.arena.WallGeometry`); ``dt`` s.
     """
 
     def __init__(self, cfg: Config | str | dict | None = None):
@@ -239,7 +215,7 @@ class World:
         self.arena = Arena.from_config(c.arena, c.walls)
         self.copter_params = CopterParams.from_config(c.copters, c.arena)
         self.hinge_params: HingeParams = self.arena.hinge
-        self.geometry = Geometry.from_arena(self.arena)
+        self.geometry = wall_geometry(self.arena)
         self.dt = c.simulation.dt
 
     @property

@@ -52,7 +52,7 @@ from ..arrays import as_array, as_env_ids, as_points, check_inplace
 from ..config import ConfigError
 from .mixture import Mixture, MixtureError
 from .ranging_kernels import (MODE_GAUSSIAN, MODE_MIXTURE, MODE_NONE, MODE_SEED, MODES, RangingParams,
-                              fast_reading, ranging_batch, row_key, sample_readings, seed_reading)
+                              ranging_batch, row_key, sample_readings)
 from .ranging_table import ResponsibilityTable, cached_table
 
 __all__ = [
@@ -196,11 +196,3 @@ def ideal_ranges(positions, beacons=(), max_range: float = 2.5) -> np.ndarray:
     model = RangingModel("none", max_range=max_range)
     env = np.zeros(pos.shape[0], dtype=np.int64)
     return ranging_readings(pos, beacons, 0, env, 0, model, ideal=True)
-
-
-# --------------------------------------------------------------------------------------------------
-# TEMP: remove once swarm imports the public kernels. finkensim/swarm.py (and benchmarks/breakdown.py)
-# still import these two private names; they are the public kernels of ranging_kernels under their old names.
-# --------------------------------------------------------------------------------------------------
-_fast_reading = fast_reading  # TEMP: remove once swarm imports the public kernels
-_seed_reading = seed_reading  # TEMP: remove once swarm imports the public kernels

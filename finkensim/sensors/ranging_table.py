@@ -27,6 +27,16 @@ from .ranging_kernels import pick_components, row_key
 __all__ = ["ResponsibilityTable", "alias_distribution", "build_alias", "cached_table"]
 
 
+@njit(cache=True, inline="always")
+def _push(i, q, small, large, ns, nl):
+    """Put index i on the small (q[i] < 1) or the large stack; returns the new stack sizes (ns, nl)."""
+    if q[i] < 1.0:
+        small[ns] = i
+        return ns + 1, nl
+    large[nl] = i
+    return ns, nl + 1
+
+
 @njit(cache=True)
 def build_alias(p, prob, alias):
     """Vose's alias method for every row of ``p`` (G, K) float64 (rows sum to 1) into ``prob`` (G, K)
@@ -40,12 +50,7 @@ def build_alias(p, prob, alias):
         nl = 0
         for i in range(k):
             q[i] = p[g, i] * k
-            if q[i] < 1.0:
-                small[ns] = i
-                ns += 1
-            else:
-                large[nl] = i
-                nl += 1
+            ns, nl = _push(i, q, small, large, ns, nl)
         while ns > 0 and nl > 0:
             ns -= 1
             s = small[ns]
@@ -54,12 +59,7 @@ def build_alias(p, prob, alias):
             prob[g, s] = q[s]
             alias[g, s] = big
             q[big] = (q[big] + q[s]) - 1.0
-            if q[big] < 1.0:
-                small[ns] = big
-                ns += 1
-            else:
-                large[nl] = big
-                nl += 1
+            ns, nl = _push(big, q, small, large, ns, nl)
         while nl > 0:  # leftovers are 1 up to rounding
             nl -= 1
             prob[g, large[nl]] = 1.0

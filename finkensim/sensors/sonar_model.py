@@ -1,5 +1,5 @@
 """The sonar model record: :class:`SonarModel` (every parameter of the ultrasonic sensors in SI units,
-as the kernels take it), its integer codes, and :class:`WallGeometry` (the arena as the sonar sees it).
+as the kernels take it), its integer codes, and, re-exported from :mod:`finkensim.arena`, :class:`WallGeometry` (the arena as the kernels see it).
 
 Built once from a config (:meth:`SonarModel.from_config`); the simulator and the gap diagnosis both pass
 this record to the same kernels (:mod:`finkensim.sensors.sonar_kernels`), and the diagnosis expresses
@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..arena import WallGeometry, wall_geometry  # noqa: F401  (the sonar kernels' view of the arena)
 from ..config import Config, ConfigError, SonarConfig
 
 __all__ = [
@@ -154,25 +155,3 @@ class SonarModel(NamedTuple):
         else:
             rays = np.zeros(1)
         return self._replace(ray_angles=np.ascontiguousarray(rays, dtype=np.float64))
-
-
-class WallGeometry(NamedTuple):
-    """The arena as the sonar kernels need it: plate_a, plate_b, normal (S, 2) m; lever m; width, length m."""
-
-    plate_a: np.ndarray
-    plate_b: np.ndarray
-    normal: np.ndarray
-    lever: float
-    width: float
-    length: float
-
-
-def wall_geometry(arena) -> WallGeometry:
-    """:class:`WallGeometry` of an :class:`~finkensim.arena.Arena` (or a WallGeometry, returned as is)."""
-    if isinstance(arena, WallGeometry):
-        return arena
-    f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
-    return WallGeometry(f(arena.plate_a), f(arena.plate_b), f(arena.normal), float(arena.lever),
-                        float(arena.width), float(arena.length))
-
-

@@ -65,7 +65,8 @@ Modules: :mod:`.state` (records and state classes), :mod:`.kernel` (the compiled
 """
 from __future__ import annotations
 
-from .kernel import ranging_batch, ranging_env, swarm_rollout
+from ..sensors.ranging_kernels import ranging_batch, ranging_env
+from .kernel import swarm_rollout
 from .sim import SwarmSim, needs_sensors
 from .state import KIND_ATTRACTION, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SensorReadings, \
     SwarmRecord, SwarmState

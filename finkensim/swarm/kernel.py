@@ -10,7 +10,7 @@ Arguments are flat NamedTuple records: :class:`~finkensim.world.WorldArrays` (wo
 :class:`~finkensim.swarm.state.RunSpec` (seed, steps, behaviour, enabled sensors),
 :class:`~finkensim.swarm.state.Recording` (outputs), and the model records
 (:class:`~finkensim.copters.CopterParams`, :class:`~finkensim.arena.HingeParams`,
-:class:`~finkensim.world.Geometry`, :class:`~finkensim.sensors.ultrasonic.SonarModel`,
+:class:`~finkensim.arena.WallGeometry`, :class:`~finkensim.sensors.ultrasonic.SonarModel`,
 ``RangingModel.params``, :class:`~finkensim.sensors.imu.ImuModel`,
 :class:`~finkensim.behaviours.random_walk.RandomWalkParams`,
 :class:`~finkensim.behaviours.attraction.AttractionParams`,
@@ -24,58 +24,13 @@ from numba import njit, prange
 from ..behaviours.attraction import attraction_env, body_to_world_env
 from ..behaviours.random_walk import random_walk_env
 from ..behaviours.wall_check import dead_reckon_env, wall_check_env
-from ..kernels.rng import STREAM_RANGING, counter_key
 from ..sensors.imu import imu_env
-from ..sensors.ranging import MODE_SEED, _fast_reading, _seed_reading
+from ..sensors.ranging_kernels import ranging_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
-__all__ = ["ranging_env", "ranging_batch", "swarm_env", "swarm_rollout"]
-
-
-@njit(cache=True, inline="always")
-def ranging_env(pos_b, beacons, seed, env, step, p, out):
-    """Virtual-ranging readings of one environment → out (N, N + M) m.
-
-    pos_b (N, 2) m copter positions, beacons (M, 2) m; seed, env, step key the random numbers. The
-    loop body of ``finkensim.sensors.ranging._readings_kernel`` (mode ``ideal=False``) for one
-    environment, built from the same helpers (``_fast_reading``, ``_seed_reading``) and the same keys,
-    so the values are identical to :func:`~finkensim.sensors.ranging.ranging_readings`. ``p`` is
-    ``RangingModel.params``.
-    """
-    n = pos_b.shape[0]
-    m = beacons.shape[0]
-    mode, max_range, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std, log_wn, half_inv_covar, seed_std = p
-    for i in range(n):
-        key = counter_key(seed, env, step, i, STREAM_RANGING)
-        xi = pos_b[i, 0]
-        yi = pos_b[i, 1]
-        for j in range(n + m):
-            if j == i:
-                out[i, j] = 0.0
-                continue
-            if j < n:
-                dx = pos_b[j, 0] - xi
-                dy = pos_b[j, 1] - yi
-            else:
-                dx = beacons[j - n, 0] - xi
-                dy = beacons[j - n, 1] - yi
-            x = np.sqrt(dx * dx + dy * dy)
-            if x > max_range:
-                y = max_range
-            elif mode == MODE_SEED:
-                y = _seed_reading(x, key, j, mean, cond_mean, log_wn, half_inv_covar, seed_std)
-            else:
-                y = _fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std)
-            out[i, j] = y if y > 0.0 else 0.0
-
-
-@njit(cache=True, parallel=True)
-def ranging_batch(pos, beacons, seed, env_ids, step, p, out):
-    """:func:`ranging_env` for B environments: pos (B, N, 2) m, env_ids (B,) → out (B, N, N + M) m."""
-    for b in prange(pos.shape[0]):
-        ranging_env(pos[b], beacons, seed, env_ids[b], step, p, out[b])
+__all__ = ["swarm_env", "swarm_rollout"]
 
 
 def _twin(kernel):
