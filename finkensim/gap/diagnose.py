@@ -394,7 +394,8 @@ def _fit_dropout(diag: Diagnosis, effect, current, vals):
 
 
 def _fit_pose_noise(diag: Diagnosis, effect, current, vals):
-    """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw."""
+    """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
+    coarse grid, then refined by a bounded scalar search between the best point's grid neighbours."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     sx0 = current.sigma_xy if current.sigma_xy is not None else float(np.mean([f.sigma_xy for f in diag.flights]))
     sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
@@ -404,7 +405,14 @@ def _fit_pose_noise(diag: Diagnosis, effect, current, vals):
                        ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
         cands = sorted(set(grid) | {v[name]})
         scores = [f({**v, name: c}) for c in cands]
-        v[name] = float(cands[int(np.argmin(scores))])
+        i = int(np.argmin(scores))
+        v[name] = float(cands[i])
+        lo, hi = cands[max(0, i - 1)], cands[min(len(cands) - 1, i + 1)]
+        if hi > lo:
+            r = optimize.minimize_scalar(lambda c: f({**v, name: float(c)}), bounds=(lo, hi), method="bounded",
+                                         options={"xatol": 0.02 * (hi - lo), "maxiter": 10})
+            if r.fun < scores[i]:
+                v[name] = float(r.x)
     return v
 
 
