@@ -27,7 +27,7 @@ test: $(STAMP)
 
 # re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
 notebooks: $(STAMP)
-	$(BIN)/python -m pytest -q --nbmake --overwrite notebooks
+	MPLBACKEND=module://matplotlib_inline.backend_inline $(BIN)/python -m pytest -q --nbmake --overwrite notebooks
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run $(if $(QUICK),--quick,)

@@ -38,6 +38,7 @@ CONFIGS = {
                                           "ranging.seed_variance_factor": 3.0},
     "cone_beam_rigid_walls": {"sonar.beam": "cone", "walls.bending": False},
     "geometric_random_offset": {"sonar.crosstalk": "geometric", "sonar.schedule": "random_offset"},
+    "seed_profile": {"profile": "seed"},
     "shifted_mixture_file": "mixture",
 }
 
