@@ -302,7 +302,7 @@ def confusion(rows: list[dict]):
     for case, r in summary.iterrows():
         loc = "n/a" if r["location_right"] != r["location_right"] else f"{r['location_right']:.0%}"
         pe = "n/a" if r["param_error_median"] != r["param_error_median"] else f"{r['param_error_median']:.1%}"
-        lines.append(f"| {case} | {r['trials']} | {r['correct']:.0%} | {loc} | {pe} | {r['shrink_mean']:.2f} | "
+        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} | {loc} | {pe} | {r['shrink_mean']:.2f} | "
                      f"{r['seconds_mean']:.0f} |")
     lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict):", ""]
     cols = list(mat.columns)
