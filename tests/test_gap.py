@@ -17,7 +17,7 @@ from finkensim.config import Config, ConfigError, config_from_dict
 from finkensim.gap import replay as rp
 from finkensim.gap import Diagnosis, GapReport, diagnose, run_diagnosis
 from finkensim.gap.features import sonar_channel_names
-from finkensim.gap.model import sonar_reading_draws
+from finkensim.gap.model import gaussian_draws, sonar_reading_draws
 from finkensim.gap.replay import GapInputError
 from finkensim.gap.report import SPEC_KEYS, spec_report
 from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
@@ -209,6 +209,22 @@ def test_sonar_reading_draws_match_the_simulator_reference(err, flags, p_const, 
     out = np.empty((n, M))
     sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp, out)
     np.testing.assert_allclose(out, naive.sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp), rtol=1e-12, atol=1e-15)
+
+
+def test_gaussian_draws_match_the_counter_based_reference():
+    from finkensim.kernels.rng import STREAM_EFFECT
+    from tests.naive.rng import normals_array
+
+    rng = np.random.default_rng(4)
+    n, M = 20, 7
+    ideal = rng.normal(size=(n, M))
+    fl, ti, ch = rng.integers(0, 3, n), rng.integers(0, 100, n), rng.integers(0, 12, n)
+    sd, bias = rng.uniform(0, 0.3, n), rng.normal(size=n)
+    out = np.empty((n, M))
+    gaussian_draws(ideal, fl, ti, ch, 5, sd, bias, out)
+    ref = np.array([ideal[i] + bias[i] + sd[i] * normals_array(5, fl[i], ti[i], ch[i], STREAM_EFFECT, M)
+                    for i in range(n)])
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-14)
 
 
 def test_sonar_channel_names():
