@@ -59,3 +59,22 @@ def test_a_shifted_mixture_diagnosed_with_the_default_one_is_a_ranging_gap(tmp_p
     rep = diagnose(_logs(cfg, 3), ["a.npz", "b.npz"], load_config().replace(SMALL), effect_names=[])
     assert rep["verdict"]["significant_gap"] is True
     assert rep.details.gap_sensors == ["ranging"]
+
+
+@pytest.mark.parametrize("content", [None, "{not json"])
+def test_a_bad_mixture_file_is_a_one_line_config_error_in_run_and_gap(tmp_path, capsys, content):
+    from finkensim import flightlog
+    from finkensim.cli import main
+
+    mix = tmp_path / "mix.json"
+    if content is not None:
+        mix.write_text(content)
+    conf = tmp_path / "c.toml"
+    conf.write_text(f'[ranging]\nmixture_file = "{mix}"\n')
+    assert main(["run", str(conf), "--out", str(tmp_path / "run"), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "ranging.mixture_file = " in err and "Traceback" not in err
+    log = simulate_flight(load_config().replace({"copters.n": 3}), duration=3.0, seed=1)[0]
+    flightlog.save(log, tmp_path / "a.npz")
+    assert main(["gap", str(tmp_path / "a.npz"), "--config", str(conf), "--out", str(tmp_path / "gap")]) == 2
+    assert f"ranging.mixture_file = '{mix}'" in capsys.readouterr().err

@@ -25,6 +25,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..config import ConfigError
+
 __all__ = ["ARRAY_NAMES", "DEFAULT_MIXTURE_FILE", "Mixture", "MixtureError"]
 
 #: The five arrays every mixture file holds (``slope`` is optional), each of shape (K,).
@@ -33,8 +35,9 @@ _UNIT_SCALE = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 #: Parlow's K = 100 model in metres (provenance in ``finkensim/data/README.md``).
 DEFAULT_MIXTURE_FILE = Path(__file__).resolve().parent.parent / "data" / "vranging_gmm_m.json"
 
-class MixtureError(ValueError):
-    """A mixture file or array is invalid. The message names the array and what is wrong."""
+class MixtureError(ConfigError):
+    """A mixture file or array is invalid. The message names the array and what is wrong. A
+    :class:`~finkensim.config.ConfigError`: commands report it as bad input, in one line."""
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:

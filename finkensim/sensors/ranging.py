@@ -110,7 +110,10 @@ class RangingModel:
     def from_config(cls, cfg, mixture: Mixture | None = None, table_tol: float = 1e-4) -> "RangingModel":
         """From a ``RangingConfig`` (``cfg.ranging``); ``mixture_file`` is loaded unless ``mixture`` is given."""
         if mixture is None and cfg.mixture_file and cfg.error in ("mixture", "seed"):
-            mixture = Mixture.load(cfg.mixture_file)
+            try:
+                mixture = Mixture.load(cfg.mixture_file)
+            except MixtureError as exc:
+                raise MixtureError(f"ranging.mixture_file = {cfg.mixture_file!r}: {exc}") from None
         return cls(error=cfg.error, max_range=cfg.max_range, sigma=cfg.sigma, mixture=mixture,
                    seed_variance_factor=cfg.seed_variance_factor, beacons=cfg.beacons, table_tol=table_tol)
 
