@@ -213,6 +213,9 @@ def test_pick_components_equals_reference(models):
     got = table.sample_components(xs, seed=5, env=6, step=7, copter=8)
     np.testing.assert_array_equal(got, naive_pick_components(table, xs, seed=5, env=6, step=7, copter=8))
     assert row_key(5, 6, 7, 8) != row_key(5, 6, 7, 9)
+    for bad in ([0.5, -0.5], [0.5, np.nan], [0.5, 2.6]):
+        with pytest.raises(ConfigError, match=r"x\[1\] = .*expected true distances in \[0, 2.5\] m"):
+            table.sample_components(bad)
 
 
 # ---------------------------------------------------------------- reproducibility

@@ -1,6 +1,6 @@
 """The flight-log record and its array schema (format ``finkensim-flightlog/1``).
 
-The format is specified in ``/work/shared/spec/flightlog.md``. This module holds the
+The format is specified in ``spec/flightlog.md`` (the project's shared specification). This module holds the
 :class:`FlightLog` record, the names of the standard arrays and the error type; checking
 a log is :mod:`.validation`, files are :mod:`.npz` and :mod:`.csv`.
 

@@ -21,6 +21,7 @@ import warnings
 import numpy as np
 from numba import njit
 
+from ..config import ConfigError
 from .mixture import Mixture
 from .ranging_kernels import pick_components, row_key
 
@@ -160,8 +161,10 @@ class ResponsibilityTable:
     def sample_components(self, x, seed: int = 0, env: int = 0, step: int = 0, copter: int = 0) -> np.ndarray:
         """Component indices drawn by the kernel for true distances ``x`` (1-D), reading columns 0…n−1."""
         xs = np.ascontiguousarray(np.asarray(x, dtype=np.float64).ravel())
-        if np.any(xs < 0) or np.any(xs > self.x_max):
-            raise ValueError(f"true distances must lie in [0, {self.x_max}] m")
+        bad = ~((xs >= 0) & (xs <= self.x_max))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ConfigError(f"x[{i}] = {xs[i]!r}: expected true distances in [0, {self.x_max}] m")
         out = np.empty(xs.size, dtype=np.int64)
         key = row_key(seed, env, step, copter)
         pick_components(xs, key, self.inv_h, self.prob, self.alias, out)

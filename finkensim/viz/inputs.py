@@ -6,13 +6,14 @@ from typing import Any
 import numpy as np
 
 from ..arena import Arena
+from ..flightlog import DEFAULT_COPTER_RADIUS
 
 __all__ = ["WALL_NAMES", "DEFAULT_RADIUS", "resolve_arena", "one_env", "plate_label", "new_axes"]
 
 WALL_NAMES = ("south", "east", "north", "west")
 """Wall names in plate order (wall_index 0..3): y = 0, x = width, y = length, x = 0."""
 
-DEFAULT_RADIUS = 0.15
+DEFAULT_RADIUS = DEFAULT_COPTER_RADIUS
 """Copter radius (m) when only an Arena is given."""
 
 
