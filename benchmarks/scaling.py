@@ -30,6 +30,7 @@ from numba import njit
 
 from benchmarks.cellgrid import build_env, grid_spec, neighbour_counts, query_env, raycast_fan_env
 from finkensim.kernels.geometry import ray_circle
+from finkensim.kernels.raycast import box_exit
 
 AREA_PER_COPTER = 2.0  # m² per copter
 RANGE = 2.5  # m, ranging range
@@ -60,20 +61,6 @@ def _move(pos, vel, width, length):
             y = -y if y < 0.0 else 2.0 * length - y
         pos[i, 0] = x
         pos[i, 1] = y
-
-
-@njit(cache=True, inline="always")
-def _box_exit(ox, oy, dx, dy, width, length):
-    t = np.inf
-    if dx > 0.0:
-        t = min(t, (width - ox) / dx)
-    elif dx < 0.0:
-        t = min(t, -ox / dx)
-    if dy > 0.0:
-        t = min(t, (length - oy) / dy)
-    elif dy < 0.0:
-        t = min(t, -oy / dy)
-    return max(t, 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -141,7 +128,7 @@ def sonar_brute(pos, vel, yaw, width, length, n_steps, out):
             ox = pos[i, 0]
             oy = pos[i, 1]
             for k in range(4):
-                best = _box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length)
+                best = box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length)
                 for j in range(N):
                     if j != i:
                         t = ray_circle(ox, oy, dirs[k, 0], dirs[k, 1], pos[j, 0], pos[j, 1], RADIUS)
@@ -171,7 +158,7 @@ def sonar_grid(pos, vel, yaw, width, length, n_steps, x0, y0, inv_cell, nx, ny, 
             raycast_fan_env(ox, oy, dirs, SONAR_RANGE, RADIUS, i, x0, y0, inv_cell, nx, ny, cell_start, order, spos,
                             ts, js)
             for k in range(4):
-                out[i, k] = min(min(_box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length), ts[k]), SONAR_RANGE)
+                out[i, k] = min(min(box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length), ts[k]), SONAR_RANGE)
 
 
 def _scene(n: int, seed: int = 0):
