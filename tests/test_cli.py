@@ -255,3 +255,25 @@ def test_console_script(tmp_path):
     assert bad.returncode == 2
     assert "Traceback" not in bad.stderr
     assert bad.stderr.strip().count("\n") == 0 and "missing.toml" in bad.stderr
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(monkeypatch, capsys):
+    import io
+    import sys
+
+    from finkensim.cli import EXIT_BROKEN_PIPE
+
+    class ClosedPipe(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    from finkensim import cli
+
+    def prints(args):
+        print("a line nobody reads")
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_run", prints)  # what `finkensim run ... | head -0` meets, without the flight
+    monkeypatch.setattr(sys, "stdout", ClosedPipe())
+    assert main(["run"]) == EXIT_BROKEN_PIPE
+    assert "Traceback" not in capsys.readouterr().err
