@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -102,6 +103,20 @@ def _load_scenario_arg(prog: str, scenario: str | None):
         raise UsageError(prog, f"cannot read scenario {scenario!r}: {exc.strerror or exc}") from None
 
 
+def _output_dir(prog: str, out: str) -> Path:
+    """``out`` created as a directory (with its parents), or a UsageError naming it and why not."""
+    if not str(out).strip():
+        raise UsageError(prog, "--out '': expected a directory name")
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise UsageError(prog, f"--out {str(path)!r} is a file: expected a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(prog, f"cannot create output directory {str(path)!r}: {exc.strerror or exc}") from None
+    return path
+
+
 def _use_agg() -> None:
     """Headless plotting for the CLI unless the user chose a backend (or pyplot is already in use)."""
     if "MPLBACKEND" not in os.environ and "matplotlib.pyplot" not in sys.modules:
@@ -118,11 +133,7 @@ def cmd_run(args) -> int:
     from .scenario import simulate_flight
 
     cfg = _load_scenario_arg(prog, args.scenario)
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(prog, f"cannot create output directory {str(out)!r}: {exc.strerror or exc}") from None
+    out = _output_dir(prog, args.out)
 
     t0 = time.perf_counter()
     try:
@@ -360,13 +371,16 @@ def cmd_gap_validate(args) -> int:
     unknown = [c for c in cases if c not in CASES]
     if unknown:
         raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)}")
-    if args.trials < 1 or args.flights < 1 or not args.duration > 0:
-        raise UsageError(prog, "--trials and --flights must be >= 1 and --duration > 0")
+    if args.trials < 1 or args.flights < 1:
+        raise UsageError(prog, f"--trials {args.trials}, --flights {args.flights}: expected integers >= 1")
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise UsageError(prog, f"--duration {args.duration}: expected a finite number of seconds > 0")
+    if args.seed < 0:
+        raise UsageError(prog, f"--seed {args.seed}: expected an integer >= 0")
+    out = _output_dir(prog, args.out)
     _use_agg()
     from tqdm import tqdm
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     # one JSON line per finished trial: an interrupted run keeps its trials and continues where it stopped
     log_path = out / "trials.jsonl"
     done = {}

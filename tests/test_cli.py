@@ -277,3 +277,20 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(monkeypatch, capsys):
     monkeypatch.setattr(sys, "stdout", ClosedPipe())
     assert main(["run"]) == EXIT_BROKEN_PIPE
     assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra,named", [(["--duration", "inf"], "--duration inf"), (["--duration", "nan"], "--duration nan"),
+                                         (["--seed", "-1"], "--seed -1"), (["--trials", "0"], "--trials 0"),
+                                         (["--out", ""], "--out ''"), (["--out", "/proc/x/y"], "/proc/x/y")])
+def test_gap_validate_rejects_bad_arguments_by_name(extra, named, capsys):
+    assert main(["gap-validate", "--cases", "null", *extra]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err
+
+
+def test_out_naming_a_file_is_a_usage_error(tmp_path, capsys):
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    assert main(["gap-validate", "--cases", "null", "--out", str(f)]) == 2
+    assert "is a file: expected a directory" in capsys.readouterr().err
+    assert f.read_text() == "x"
