@@ -27,7 +27,7 @@ from ..sensors.imu import ImuModel
 from ..sensors.ranging import RangingModel
 from ..kernels.raycast import HIT_NONE
 from ..sensors.sonar_kernels import measured_reading
-from ..sensors.sonar_model import SonarModel
+from ..sensors.sonar_model import SonarModel, rayleigh_std
 
 __all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_reading_draws", "gaussian_draws"]
 
@@ -78,12 +78,16 @@ class ModelParams:
     def with_sonar(self, **kw) -> "ModelParams":
         """A copy whose sonar model has the given fields replaced (``rayleigh_s`` follows ``sigma``)."""
         if "sigma" in kw and "rayleigh_s" not in kw:
-            kw["rayleigh_s"] = math.sqrt((4.0 - math.pi) / 2.0) * float(kw["sigma"])
+            kw["rayleigh_s"] = rayleigh_std(kw["sigma"])
         return replace(self, sonar=self.sonar._replace(**kw))
 
     def sensor_key(self, sensor: str) -> tuple:
         """A hashable key of everything the predictive of ``sensor`` depends on."""
-        return tuple(_hashable(getattr(self, k)) for k in SHARED_FIELDS + SENSOR_FIELDS[sensor])
+        return tuple(self.field_key(k) for k in SHARED_FIELDS + SENSOR_FIELDS[sensor])
+
+    def field_key(self, name: str):
+        """A hashable key of the field ``name`` (arrays by content, the ranging model by its parts)."""
+        return _hashable(getattr(self, name))
 
     def walk_density(self) -> tuple[float, float]:
         """(accelerometer m/s²/√s, gyro rad/s/√s) bias random-walk densities of the IMU model."""

@@ -247,7 +247,7 @@ class RangingTable(Table):
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.sensor_key("ranging")[2], seed, M)
+        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.field_key("ranging"), seed, M)
         hit = self.cache.get(key)
         if hit is None:
             (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
