@@ -16,7 +16,6 @@ exits with code 2; there is no traceback for user errors.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -359,50 +358,53 @@ def _add_gap_validate(sub) -> None:
     p.add_argument("--duration", type=float, default=60.0, metavar="S", help="seconds per flight (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, metavar="N", help="first trial seed (default: %(default)s)")
     p.add_argument("--out", default="out/gap-validate", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--conventions", choices=("default", "random"), default="default",
+                   help="how the 'real' flights are recorded: finkensim's defaults, or a random point of the "
+                        "conventions axis per trial (altitude, sonar offset, no-echo value, noise shape, rate, "
+                        "swarm size, tracking noise) (default: %(default)s)")
+    p.add_argument("--pairs", action="store_true", help="also every pair of catalogued effects at once")
+    p.add_argument("--executor", choices=("serial", "process", "dask"), default="serial",
+                   help="where trials run (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=2, metavar="N", help="process/Dask workers (default: %(default)s)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (with --executor dask)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_gap_validate)
 
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
-    from .gap.validate import CASES, confusion, run_case
+    from .gap.validate import CASES, all_pairs, confusion, get_case
+    from .gap.validate_sweep import run_trials
 
     cases = args.cases or list(CASES)
-    unknown = [c for c in cases if c not in CASES]
+    if args.pairs:
+        cases += [c for c in all_pairs() if c not in cases]
+    unknown = []
+    for c in cases:
+        try:
+            get_case(c)
+        except (KeyError, ValueError):
+            unknown.append(c)
     if unknown:
-        raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)}")
-    if args.trials < 1 or args.flights < 1:
-        raise UsageError(prog, f"--trials {args.trials}, --flights {args.flights}: expected integers >= 1")
+        raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)} or pairs EFFECT+EFFECT")
+    if args.trials < 1 or args.flights < 1 or args.workers < 1:
+        raise UsageError(prog, f"--trials {args.trials}, --flights {args.flights}, --workers {args.workers}: "
+                               "expected integers >= 1")
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(prog, f"--duration {args.duration}: expected a finite number of seconds > 0")
     if args.seed < 0:
         raise UsageError(prog, f"--seed {args.seed}: expected an integer >= 0")
+    if args.scheduler and args.executor != "dask":
+        raise UsageError(prog, f"--scheduler {args.scheduler!r} needs --executor dask")
     out = _output_dir(prog, args.out)
     _use_agg()
+    from functools import partial
+
     from tqdm import tqdm
 
-    # one JSON line per finished trial: an interrupted run keeps its trials and continues where it stopped
-    log_path = out / "trials.jsonl"
-    done = {}
-    if log_path.exists():
-        for line in log_path.read_text().splitlines():
-            try:
-                r = json.loads(line)
-                done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
-            except (ValueError, KeyError):
-                continue
-    rows = []
-    # trial-major: an interrupted run still has every case's first trials
-    jobs = [(c, args.seed + t) for t in range(args.trials) for c in cases]
-    for case, seed in tqdm(jobs, desc="gap-validate", disable=args.no_progress, file=sys.stderr):
-        key = (case, seed, args.flights, args.duration)
-        if key not in done:
-            r = run_case(case, seed, n_flights=args.flights, duration=args.duration)
-            r.update(flights=args.flights, duration=args.duration)
-            with log_path.open("a") as fh:
-                fh.write(json.dumps(r, default=float) + "\n")
-            done[key] = r
-        rows.append(done[key])
+    bar = None if args.no_progress else partial(tqdm, desc="gap-validate", file=sys.stderr)
+    rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
+                      executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar)
     table, md = confusion(rows)
     table.to_csv(out / "results.csv", index=False)
     (out / "matrix.md").write_text(md)
