@@ -200,7 +200,7 @@ def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, 
 
     Returns (logs, base config for the diagnosis, truth dict). Poses carry the conventions' tracking noise
     (declared in meta) unless the case is ``pose_noise``, whose noise is larger than declared. For
-    ``wall_bulge`` the simulated walls hang from a hinge 0.6 m above the flight (so they bend at any
+    ``wall_bulge`` the simulated walls hang from a hinge at least 0.4 m above the flight (so they bend at any
     altitude) while the diagnosed model keeps its own, possibly rigid, walls.
     """
     conv = conventions or DEFAULT_CONVENTIONS
@@ -210,7 +210,7 @@ def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, 
     updates, post, truth = case.make(rng)
     extra = {}
     if updates.get("walls.bending"):  # bending walls in the "real" flight: give them a lever at any altitude
-        extra["walls.hinge_height"] = max(1.0, conv.altitude + 0.6)
+        extra["walls.hinge_height"] = max(1.0, conv.altitude + 0.4)
     sim_cfg = base_config({**conv.sim_updates(), **extra, **updates})
     diag_cfg = base_config({"copters.n": conv.n_copters, **conv.diag_updates()})
     logs = []
