@@ -6,7 +6,7 @@ Format (top-level keys before the tables; ``[base]`` and the parameter specs as 
     n_trials = 40            # finished trials the study should have (a resumed study runs the rest)
     seed = 0                 # sampler seed
     duration = 20.0          # s per episode (default: simulation.duration of the base scenario)
-    sampler = "tpe"          # "tpe", "nsga2" or "random" (default: tpe for one objective, nsga2 for several)
+    sampler = "tpe"          # "tpe" (default; one or several objectives), "nsga2" or "random"
     study_name = "tune"      # name in the storage (default "finkensim-tune")
     storage = "study.db"     # SQLite file relative to --out (default), or an RDB URL ("postgresql://...")
 
@@ -196,7 +196,7 @@ def parse_study(source: str | Path | Mapping[str, Any], base_dir: str | Path | N
             raise p.error(f"[objectives] {metric} = {direction!r}: expected 'minimize' or 'maximize'")
     objectives = tuple((m, d) for m, d in objs.items())
 
-    sampler = data.get("sampler", "tpe" if len(objectives) == 1 else "nsga2")
+    sampler = data.get("sampler", "tpe")
     if sampler not in SAMPLERS:
         raise p.error(f"sampler = {sampler!r}{suggest(str(sampler), SAMPLERS)}: expected one of {', '.join(SAMPLERS)}")
     for key in ("study_name", "storage"):
