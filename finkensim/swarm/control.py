@@ -68,25 +68,29 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
         _imu_fn(w.acc[b], w.yaw[b], w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
 
 
+@njit(cache=True)
+def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+    """Environment b of :func:`control_step` (work buffers allocated here, outside the ``prange`` body)."""
+    N = w.pos.shape[1]
+    S = geo.plate_a.shape[0]
+    bufs = (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
+            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
+    if run.n_steps == 1:
+        cmd_v = np.empty((N, 2))
+        _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
+        _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N))
+    _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
+               geo, sp, rp, beacons, ip, bufs)
+
+
 @njit(cache=True, parallel=True)
 def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
     """For every environment b (``prange``): if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the
     headings into the world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate
     commands; then sense at step ``run.step0 + run.n_steps`` into ``obs`` (a :class:`ControlReadings`).
     ``w`` (WorldArrays) and ``bias`` (B, N, 3) change in place."""
-    B = w.pos.shape[0]
-    N = w.pos.shape[1]
-    S = geo.plate_a.shape[0]
-    for bb in prange(B):
-        b = np.int64(bb)
-        bufs = (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
-                np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
-        if run.n_steps == 1:
-            cmd_v = np.empty((N, 2))
-            _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
-            _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N))
-        _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
-                   geo, sp, rp, beacons, ip, bufs)
+    for b in prange(w.pos.shape[0]):
+        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
 
 
 #: the same kernel without threads: a parallel launch costs far more than a small batch's work
