@@ -155,3 +155,13 @@ def test_clear_errors():
         env.step(np.zeros((4, 2)))
     with pytest.raises(ConfigError, match="seed"):
         env.reset(seed=[1, 2, 3])
+
+
+def test_envs_benchmark_runs():
+    from benchmarks import envs_bench
+
+    rows = envs_bench.run(0.005, 1, lambda msg: None, threads=(1,), bs=(1, 2))
+    assert [(r["env"], r["B"]) for r in rows] == [("gymnasium vector", 1), ("gymnasium vector", 2),
+                                                  ("pettingzoo parallel", 1), ("pettingzoo parallel", 2)]
+    assert all(r["env_steps_per_s"] > 0 for r in rows)
+    assert "| gymnasium vector | 10 | 2 |" in envs_bench.markdown(rows)

@@ -106,7 +106,7 @@ def _enqueue_defaults(study, spec: StudySpec) -> None:
         inside = v in p.choices if p.choices is not None else p.low <= v <= p.high
         if inside:
             fixed[p.key] = v
-    study.enqueue_trial(fixed, user_attrs={"role": DEFAULTS_ROLE})
+    study.enqueue_trial(fixed, user_attrs={"role": DEFAULTS_ROLE}, skip_if_exists=True)
 
 
 def select_best(study, spec: StudySpec):
