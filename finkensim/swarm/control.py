@@ -12,7 +12,7 @@ step k, so readings driven with zero commands equal a ``"hover"`` :meth:`SwarmSi
     ctl = Controlled(sim)                        # sim: a SwarmSim (its config's sensors and models)
     state = sim.init(n_envs=B, seed=0)
     obs = ctl.sense(state)                       # readings of step 0 (advances the IMU bias in place)
-    obs = ctl.step(state, cmd_body)              # cmd_body (B, N, 2) m/s body frame; state advances in place
+    state, obs = ctl.step(state, cmd_body)       # cmd_body (B, N, 2) m/s body frame; the arrays change in place
 """
 from __future__ import annotations
 
