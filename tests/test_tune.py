@@ -142,3 +142,20 @@ def test_cli_reports_bad_study_file_in_one_line(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "finkensim tune: error:" in r.stderr
+
+
+def test_two_processes_share_one_study(tmp_path):
+    study = tmp_path / "study.toml"
+    study.write_text(study_text(n=8, duration=1.0))
+    cmd = [sys.executable, "-m", "finkensim.cli", "tune", str(study), "--out", str(tmp_path / "out"), "--no-progress",
+           "--no-heldout", "--no-figures"]
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    procs = [subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    for p in procs:
+        _, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+    s = optuna.load_study(study_name="finkensim-tune", storage=f"sqlite:///{tmp_path / 'out' / 'study.db'}")
+    states = [t.state.name for t in s.trials]
+    assert states.count("COMPLETE") >= 8 and "FAIL" not in states
+    assert sum(t.user_attrs.get("role") == "defaults" for t in s.trials) == 1

@@ -18,6 +18,7 @@ Outputs in DIR: ``study.db``, ``trials.csv``, ``best.json``, ``heldout.csv``, ``
 from __future__ import annotations
 
 import json
+import time
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -96,6 +97,30 @@ def _objective(spec: StudySpec):
         return out[0] if len(out) == 1 else tuple(out)
 
     return objective
+
+
+def _open_study(url: str, spec: StudySpec, directions: list[str], attempts: int = 10):
+    """(study, created): create the study in the RDB storage ``url``, or load it if it exists. Processes that
+    start at once on a new SQLite file race to create its tables; the loser retries after a short pause. Only
+    the process that created the study gets ``created`` True (the storage's unique study name decides)."""
+    import optuna
+    from optuna.exceptions import DuplicatedStudyError
+    from sqlalchemy.exc import DBAPIError
+
+    for attempt in range(attempts):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+                rdb = optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=2 * HEARTBEAT_S)
+            try:
+                return optuna.create_study(study_name=spec.study_name, storage=rdb, sampler=_sampler(spec),
+                                           directions=directions), True
+            except DuplicatedStudyError:
+                return optuna.load_study(study_name=spec.study_name, storage=rdb, sampler=_sampler(spec)), False
+        except DBAPIError:
+            if attempt == attempts - 1:
+                raise
+            time.sleep(0.2 * (attempt + 1))
 
 
 def _enqueue_defaults(study, spec: StudySpec) -> None:
@@ -196,16 +221,12 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
         (out / "study.toml").write_text(spec.text)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     url = storage_url(spec, out, storage)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        rdb = optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=2 * HEARTBEAT_S)
     directions = [d for _, d in spec.objectives]
-    st = optuna.create_study(study_name=spec.study_name, storage=rdb, load_if_exists=True, sampler=_sampler(spec),
-                             directions=directions)
+    st, created = _open_study(url, spec, directions)
     if [d.name.lower() for d in st.directions] != directions:
         raise ConfigError(f"storage {url!r} holds a study {spec.study_name!r} with directions "
                           f"{[d.name.lower() for d in st.directions]}, not {directions}: use another study_name or --out")
-    if not st.trials:
+    if created:  # once, by the process that created the study
         _enqueue_defaults(st, spec)
     done = len(st.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
     todo = max(0, spec.n_trials - done)
