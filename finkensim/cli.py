@@ -429,6 +429,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_gap(sub)
     _add_gap_validate(sub)
+    from .tune.cli import add_parser as add_tune  # optuna is imported only when the command runs
+
+    add_tune(sub)
     return parser
 
 
