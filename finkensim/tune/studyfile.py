@@ -37,15 +37,14 @@ Every problem raises :class:`~finkensim.sweep.SweepError` naming the key, the va
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 from ..config import Config, ConfigError
 from ..metrics import METRICS
-from ..sweep.checks import Parser, field_kind, is_duration, is_number, suggest
-from ..sweep.sweepfile import SPEC_KEYS, base_from_table, read_sweep_toml
+from ..sweep.checks import Parser, field_kind, is_duration, suggest
+from ..sweep.sweepfile import SPEC_KEYS, base_from_table, range_spec, read_sweep_toml
 
 __all__ = ["Param", "StudySpec", "parse_study", "TOP_KEYS", "SAMPLERS"]
 
@@ -120,22 +119,7 @@ def _param(p: Parser, key: str, spec) -> Param:
         if not isinstance(choices, list) or not choices:
             raise p.error(f"{where}.choices = {choices!r}: expected a non-empty list of values")
         return Param(key, kind, choices=tuple(choices))
-    if "low" not in spec or "high" not in spec:
-        raise p.error(f"{where} = {dict(spec)!r}: expected both low and high (or choices)")
-    if kind not in ("int", "float"):
-        raise p.error(f"{where}: {key} takes {kind} values; use {{choices = [..]}} instead of low/high")
-    lo, hi, log = spec["low"], spec["high"], spec.get("log", False)
-    for name, v in (("low", lo), ("high", hi)):
-        if not is_number(v) or not math.isfinite(v):
-            raise p.error(f"{where}.{name} = {v!r}: expected a finite number")
-        if kind == "int" and not isinstance(v, int):
-            raise p.error(f"{where}.{name} = {v!r}: {key} is an integer key; expected an integer")
-    if not isinstance(log, bool):
-        raise p.error(f"{where}.log = {log!r}: expected true or false")
-    if not lo < hi:
-        raise p.error(f"{where}: low = {lo!r}, high = {hi!r}: expected low < high")
-    if log and lo <= 0:
-        raise p.error(f"{where}: log = true needs low > 0, got low = {lo!r}")
+    lo, hi, log = range_spec(p, where, key, kind, spec)
     return Param(key, kind, low=lo, high=hi, log=log)
 
 
