@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import time
+import zlib
 from dataclasses import dataclass, replace
 from typing import Callable
 
@@ -321,10 +322,10 @@ def get_case(name: str) -> Case:
 def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, progress=None,
              conventions: Conventions | str | None = None) -> dict:
     """Generate and diagnose one trial; returns a result row. conventions: a :class:`Conventions`, "random"
-    (drawn from the axis with the trial's seed) or None (the defaults)."""
+    (drawn from the axis, keyed by the case name and the seed) or None (the defaults)."""
     case = get_case(name)
-    if conventions == "random":
-        conventions = draw_conventions(np.random.default_rng([seed, 7]))
+    if conventions == "random":  # its own point of the axis per (case, seed)
+        conventions = draw_conventions(np.random.default_rng([seed, zlib.crc32(name.encode())]))
     t0 = time.perf_counter()
     logs, cfg, truth = generate(case, seed, n_flights=n_flights, duration=duration, n_copters=n_copters,
                                 conventions=conventions)
