@@ -56,12 +56,6 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
     significant = bool(gap_sensors)
 
-    def gap_on(values_by_sensor, sensors):
-        """Mean held-out gap over the given sensors (the ones with a significant base gap)."""
-        return float(np.mean([np.nanmean(values_by_sensor[s]) for s in sensors])) if sensors else math.nan
-
-    base_gap_sig = gap_on(gap_vals, gap_sensors)
-
     diag.say("locating the gap")
     locs = diag.locations(base)
 
@@ -79,7 +73,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         return diag.overall(diff, rows_ho)
 
     # greedy forward selection on the held-out score
-    current, cur_scores, cur_gaps, cur_gap, cur_score = base, base_scores, gap_vals, base_gap_sig, score_before
+    current, cur_scores, cur_gaps, cur_score = base, base_scores, gap_vals, score_before
     steps = [("configured model", None, base_scores, gap_vals, None)]
     added, pool, ambiguous = [], list(first), []
     while significant and pool and len(added) < max_added:
@@ -93,7 +87,6 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             evaluated += [r.rows_score for r in pool]
         best = _pick(pool, cur_score, cfg.tie_tolerance)
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
-        best_gap_sig = gap_on(best.rows_gap, gap_sensors)
         # the largest share of a gap sensor's configured-model gap this step removes (not of what is left: a
         # small misfit of the first effect must not let a catch-all in as a second one; per sensor: an effect on
         # a sensor with a small gap is not diluted by a large gap elsewhere)
@@ -108,7 +101,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             ambiguous = _near_ties(pool, best, cur_score, cfg.tie_tolerance)
         added.append(best)
         current, cur_scores, cur_gaps = best.params, best.rows_score, best.rows_gap
-        cur_gap, cur_score = best_gap_sig, best.score_heldout
+        cur_score = best.score_heldout
         steps.append((f"+ {best.name}", best.name, best.rows_score, best.rows_gap, _clean(best.values)))
         pool = [r for r in pool if r.name != best.name]
         diag.say(f"  added {best.name}: held-out score {best.score_heldout:.4f}")
