@@ -92,3 +92,19 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
         if bar is not None:
             bar.close()
     return [done[k] for k in keys]
+
+
+def summarize(out: Path) -> str:
+    """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not."""
+    from .validate import confusion
+
+    rows = list(load_done(Path(out) / "trials.jsonl").values())
+    if not rows:
+        raise FileNotFoundError(f"{Path(out) / 'trials.jsonl'}: no finished trials")
+    return confusion(rows)[1]
+
+
+if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT: the matrix of an interrupted run so far
+    import sys
+
+    print(summarize(Path(sys.argv[1] if len(sys.argv) > 1 else "out/gap-validate")), end="")
