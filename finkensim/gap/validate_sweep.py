@@ -83,8 +83,9 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
     try:
         for row in _completed(todo, executor, workers, scheduler):
-            with log_path.open("a") as fh:
-                fh.write(json.dumps(row, default=float) + "\n")
+            torn = log_path.exists() and log_path.stat().st_size > 0 and not log_path.read_bytes().endswith(b"\n")
+            with log_path.open("a") as fh:  # after a line torn by a kill, start a new one
+                fh.write(("\n" if torn else "") + json.dumps(row, default=float) + "\n")
             done[trial_key(row["case"], row["seed"], flights, duration, conventions)] = row
             if bar is not None:
                 bar.update(1)
