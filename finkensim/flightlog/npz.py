@@ -13,6 +13,7 @@ import numpy as np
 
 from .encoding import as_text, meta_from_json, meta_to_json
 from .format import FORMAT, OPTIONAL, REQUIRED, STANDARD, FlightLog, FlightLogError
+from .validation import check_dtype
 from .validation import validate as validate_log  # load() has a parameter called validate
 
 __all__ = ["save", "load"]
@@ -63,7 +64,8 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
 
     A missing or unreadable file, a file that is not an ``.npz`` archive, an object (pickled)
     array, a wrong or missing ``format``, missing required arrays or a ``meta`` that is not a
-    JSON object always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
+    JSON object, an integer array where the format asks for float64 (anything but ``arena`` and
+``ultrasonic_offset``) always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
     only the content checks of :func:`validate`. Numeric arrays are returned as float64;
     arrays the format does not name go to ``extras``.
     """
@@ -112,6 +114,7 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
             if name == "copter_ids":
                 a = as_text(name, a, scalar=False) if a.dtype.kind in "US" else a
             elif a.dtype.kind in "iuf":
+                check_dtype(name, a)  # an integer pose / t is an error even without validation
                 a = a.astype(np.float64, copy=False)
                 if name == "ultrasonic_offset" and a.shape == ():
                     a = float(a)
