@@ -21,6 +21,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -103,13 +104,16 @@ def _load_scenario_arg(prog: str, scenario: str | None):
         raise UsageError(prog, f"cannot read scenario {scenario!r}: {exc.strerror or exc}") from None
 
 
-def _output_dir(prog: str, out: str) -> Path:
-    """``out`` created as a directory (with its parents), or a UsageError naming it and why not."""
+def _output_dir(prog: str, out: str, create: bool = True) -> Path:
+    """``out`` created as a directory (with its parents; only checked if not ``create``), or a UsageError
+    naming it and why not."""
     if not str(out).strip():
         raise UsageError(prog, "--out '': expected a directory name")
     path = Path(out)
     if path.exists() and not path.is_dir():
         raise UsageError(prog, f"--out {str(path)!r} is a file: expected a directory")
+    if not create:
+        return path
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -211,7 +215,7 @@ def _add_sweep(sub) -> None:
         help="Monte-Carlo parameter sweep: metrics of many episodes, with summary table and plot",
         description="Run every parameter combination x replicate of a sweep file (see finkensim.sweep) and write "
                     "DIR/parts/run-XXXXX.parquet (one per finished run), DIR/results.parquet, DIR/summary.csv "
-                    "(mean and 95%% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
+                    "(mean and 95% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
     )
     p.add_argument("sweep", help="sweep TOML file ([base], [grid] or [random], [variants.NAME], replicates, duration, metrics, seed)")
     p.add_argument("--out", default="out/sweep", metavar="DIR", help="output directory (default: %(default)s)")
@@ -244,6 +248,7 @@ def cmd_sweep(args) -> int:
         raise UsageError(prog, f"--scheduler needs --executor dask, got --executor {executor}")
     if args.workers is not None and args.workers < 1:
         raise UsageError(prog, f"--workers {args.workers}: expected a positive number of workers")
+    _output_dir(prog, args.out, create=False)
     try:
         sweep = Sweep.from_toml(path)
     except ConfigError as exc:
@@ -312,6 +317,7 @@ def cmd_gap(args) -> int:
     from .gap.replay import GapInputError
 
     _use_agg()
+    _output_dir(prog, args.out, create=False)
     cfg = load_config(None)
     if args.config is not None:
         cfg = _load_scenario_arg(prog, args.config)
@@ -439,7 +445,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise UsageError(parser.prog, "a command is required; try 'finkensim run' or 'finkensim --help'")
         # the prog of the chosen subparser, e.g. "finkensim run", for messages
         args.prog = f"{parser.prog} {args.command}"
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            # a warning is one line "finkensim run: warning: ...", without the Python source line
+            warnings.showwarning = lambda msg, *_, **__: print(f"{args.prog}: warning: {_one_line(msg)}", file=sys.stderr)
+            return int(args.func(args))
     except UsageError as exc:
         print(f"{exc.prog}: error: {_one_line(str(exc))}", file=sys.stderr)
         return EXIT_USAGE

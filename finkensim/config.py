@@ -55,7 +55,8 @@ def _describe_range(meta) -> str:
 
 def _check_number(key, value, meta, kind):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{key} = {value!r}: expected a {kind}, got {type(value).__name__}")
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ConfigError(f"{key} = {value!r}: expected {article} {kind}, got {type(value).__name__}")
     if kind == "integer" and not isinstance(value, int):
         raise ConfigError(f"{key} = {value!r}: expected an integer, got {type(value).__name__}")
     if not math.isfinite(value):
@@ -94,9 +95,11 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
     if t.startswith("tuple"):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
+        inner = "tuple[float, float]" in t or "tuple[tuple" in t
+        if not inner:  # a bad element is named before a wrong length
+            checked = tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
         if meta["length"] is not None and len(value) != meta["length"]:
             raise ConfigError(f"{key} = {value!r}: expected a list of {meta['length']} numbers, got {len(value)}")
-        inner = "tuple[float, float]" in t or "tuple[tuple" in t
         if inner:  # a list of 2-D points
             pts = []
             for i, p in enumerate(value):
@@ -104,7 +107,7 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
                     raise ConfigError(f"{key}[{i}] = {p!r}: expected a point [x, y] in m")
                 pts.append(tuple(_check_number(f"{key}[{i}]", c, meta, "number") for c in p))
             return tuple(pts)
-        return tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
+        return checked
     raise TypeError(f"unsupported config field type {t} for {key}")  # a bug in this module, not user input
 
 
@@ -455,11 +458,16 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
                               else f"config file {str(path)!r} is not a file")
         text = path.read_text()
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(strip_bom(text))
     except tomllib.TOMLDecodeError as exc:
         where = f" in {path}" if path else ""
         raise ConfigError(f"invalid TOML{where}: {exc}") from None
     return config_from_dict(data)
+
+
+def strip_bom(text: str) -> str:
+    """``text`` without a leading UTF-8 byte-order mark (some editors write one; TOML does not allow it)."""
+    return text[1:] if text.startswith("\ufeff") else text
 
 
 def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:

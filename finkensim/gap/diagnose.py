@@ -127,7 +127,14 @@ class Diagnosis:
             tr_rows = np.nonzero(~ho)[0]
             ho_rows = np.nonzero(ho)[0]
             if tr_rows.size == 0 or ho_rows.size == 0:
-                raise GapInputError(f"{s}: no readings in the {'training' if tr_rows.size == 0 else 'held-out'} flights")
+                part = "training" if tr_rows.size == 0 else "held-out"
+                why = ""
+                if s == "imu":
+                    w = self.cfg.gap.imu_window
+                    why = (f"; an IMU reading integrates gap.imu_window = {w:g} s of a flight, so each {part} flight "
+                           f"(or half of a single flight) must be longer than that: use longer flights or a smaller "
+                           f"gap.imu_window")
+                raise GapInputError(f"{s}: no readings in the {part} flights{why}")
             self.rows_fit[s] = np.sort(rng.choice(tr_rows, min(cap, tr_rows.size), replace=False))
             self.rows_ho[s] = np.sort(rng.choice(ho_rows, min(4 * cap, ho_rows.size), replace=False))
             allr = np.arange(tab.n)
