@@ -383,6 +383,14 @@ def cmd_gap_validate(args) -> int:
         raise UsageError(prog, f"--duration {args.duration}: expected a finite number of seconds > 0")
     if args.seed < 0:
         raise UsageError(prog, f"--seed {args.seed}: expected an integer >= 0")
+    from .budget import check_memory, flight_arrays
+    from .config import ConfigError, load_config
+
+    try:  # every trial simulates --flights flights of --duration s of the default scenario
+        check_memory(flight_arrays(load_config(None), duration=args.duration), f"a flight of --duration {args.duration:g} s",
+                     "lower --duration")
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)
     _use_agg()
     from tqdm import tqdm

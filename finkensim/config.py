@@ -343,6 +343,7 @@ class Config:
             built[name] = sec if sec is not None else cls(**PROFILES[profile].get(name, {}))
         if sections:
             raise ConfigError(f"unknown config sections: {', '.join(sections)}")
+        _check_room(built["copters"], built["arena"])
         object.__setattr__(self, "_sections", built)
 
     def __getattr__(self, name):
@@ -396,6 +397,19 @@ class Config:
             check_key(section, key)
             data[section][key] = value
         return config_from_dict(data, _explicit=True)
+
+
+PACKING_DENSITY = math.pi / (2 * math.sqrt(3))  # densest packing of equal discs in the plane (hexagonal)
+
+
+def _check_room(copters, arena) -> None:
+    """Raise if ``copters.n`` bodies of ``copters.radius`` cannot fit in the arena at any arrangement."""
+    body, room = math.pi * copters.radius ** 2, PACKING_DENSITY * arena.width * arena.length
+    if copters.n * body > room:
+        raise ConfigError(
+            f"copters.n = {copters.n}: {copters.n} copters of copters.radius = {copters.radius} m cover "
+            f"{copters.n * body:.3g} m^2, more than the {arena.width} x {arena.length} m arena holds even packed "
+            f"hexagonally ({room:.3g} m^2); expected copters.n <= {int(room / body)}, a larger arena or a smaller radius")
 
 
 def check_key(section: str, key: str | None = None) -> None:

@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 from scipy import optimize
 
+from ..budget import check_memory, gap_arrays
 from ..config import Config
 from ..flightlog import FlightLog
 from . import effects as fx
@@ -71,6 +72,14 @@ class Diagnosis:
         self.names = list(names)
         self.say("replaying flights")
         self.flights = prepare_flights(logs, self.names, cfg)
+        readings = 0.0
+        for f in self.flights:  # per sample: sonars, ranging row, IMU channels of every copter
+            lg = f.log
+            per = (lg.ultrasonic.shape[2] if lg.ultrasonic is not None else 0) + (
+                f.n_copters - 1 if lg.ranging is not None else 0) + (3 if lg.imu_acc is not None else 0)
+            readings += f.samples.size * f.n_copters * per
+        check_memory(gap_arrays(cfg, readings), f"the diagnosis of {len(self.flights)} flight(s)",
+                     "lower gap.max_samples_per_flight or gap.draws, or diagnose fewer flights at once")
         self.base = ModelParams.from_config(cfg)
         self._split(heldout)
         self.say("building reading tables")
