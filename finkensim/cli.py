@@ -5,6 +5,7 @@
                     [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
     finkensim gap REAL.npz [REAL2.npz ...] [--config sim.toml] [--out DIR] [--heldout NAME ...]
     finkensim gap-validate [--cases CASE ...] [--trials N] [--flights K] [--duration S] [--out DIR]
+    finkensim check FILE [FILE ...] [--arena W L]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -16,7 +17,6 @@ exits with code 2; there is no traceback for user errors.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -371,7 +371,7 @@ def _add_gap_validate(sub) -> None:
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
-    from .gap.validate import CASES, confusion, run_case
+    from .gap.validate import CASES, confusion, run_trials
 
     cases = args.cases or list(CASES)
     unknown = [c for c in cases if c not in CASES]
@@ -393,36 +393,34 @@ def cmd_gap_validate(args) -> int:
         raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)
     _use_agg()
-    from tqdm import tqdm
-
-    # one JSON line per finished trial: an interrupted run keeps its trials and continues where it stopped
-    log_path = out / "trials.jsonl"
-    done = {}
-    if log_path.exists():
-        for line in log_path.read_text().splitlines():
-            try:
-                r = json.loads(line)
-                done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
-            except (ValueError, KeyError):
-                continue
-    rows = []
-    # trial-major: an interrupted run still has every case's first trials
-    jobs = [(c, args.seed + t) for t in range(args.trials) for c in cases]
-    for case, seed in tqdm(jobs, desc="gap-validate", disable=args.no_progress, file=sys.stderr):
-        key = (case, seed, args.flights, args.duration)
-        if key not in done:
-            r = run_case(case, seed, n_flights=args.flights, duration=args.duration)
-            r.update(flights=args.flights, duration=args.duration)
-            with log_path.open("a") as fh:
-                fh.write(json.dumps(r, default=float) + "\n")
-            done[key] = r
-        rows.append(done[key])
+    try:
+        rows = run_trials(out / "trials.jsonl", cases, args.trials, args.seed, n_flights=args.flights,
+                          duration=args.duration, progress=not args.no_progress)
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
     table, md = confusion(rows)
     table.to_csv(out / "results.csv", index=False)
     (out / "matrix.md").write_text(md)
     print(md)
     print(f"{prog}: wrote {out / 'matrix.md'} and {out / 'results.csv'}")
     return EXIT_OK
+
+
+def _add_check(sub) -> None:
+    p = sub.add_parser("check", help="validate flight logs, scenario and sweep files without running them",
+                       description="Read each file as the command using it would (flight logs .npz/.csv, scenario "
+                                   "or sweep TOML), print a one-line summary of a good file and a named error for a "
+                                   "bad one (exit code 2 if any file is bad). See finkensim.checkfiles.")
+    p.add_argument("files", nargs="+", metavar="FILE", help="flight logs (.npz, .csv), scenario or sweep TOML files")
+    p.add_argument("--arena", nargs=2, type=float, default=None, metavar=("W", "L"),
+                   help="arena width and length in m for .csv tracking files (default 3 4)")
+    p.set_defaults(func=cmd_check)
+
+
+def cmd_check(args) -> int:
+    from .checkfiles import check_files
+
+    return check_files(args.files, args.prog, arena=args.arena)
 
 
 # ------------------------------------------------------------------------------------------
@@ -441,6 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_gap(sub)
     _add_gap_validate(sub)
+    _add_check(sub)
     return parser
 
 

@@ -57,7 +57,7 @@ LAYERS = [
     ("swarm",),
     ("flightlog", "metrics", "analysis", "default_scenario"),
     ("scenario", "episode", "checks", "viz"),
-    ("sweep", "gap"),
+    ("sweep", "gap", "checkfiles"),
     ("cli",),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}

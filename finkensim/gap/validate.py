@@ -284,6 +284,38 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=6, prog
     }
 
 
+def run_trials(log_path, cases, trials: int, seed: int, n_flights: int = 2, duration: float = 60.0,
+               progress: bool = True) -> list[dict]:
+    """``trials`` trials of every case (seeds ``seed`` …), trial-major so an interrupted run still has every
+    case's first trials; one JSON line per finished trial in ``log_path`` (a ``pathlib.Path``), read back on
+    the next call so a run continues where it stopped (a torn last line is ignored and run again)."""
+    import json
+    import sys
+
+    from tqdm import tqdm
+
+    done = {}
+    if log_path.exists():
+        for line in log_path.read_text().splitlines():
+            try:
+                r = json.loads(line)
+                done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
+            except (ValueError, KeyError, TypeError):
+                continue
+    rows = []
+    jobs = [(c, seed + t) for t in range(trials) for c in cases]
+    for case, s in tqdm(jobs, desc="gap-validate", disable=not progress, file=sys.stderr):
+        key = (case, s, n_flights, duration)
+        if key not in done:
+            r = run_case(case, s, n_flights=n_flights, duration=duration)
+            r.update(flights=n_flights, duration=duration)
+            with log_path.open("a") as fh:
+                fh.write(json.dumps(r, default=float) + "\n")  # one write: a line is whole or torn, never mixed
+            done[key] = r
+        rows.append(done[key])
+    return rows
+
+
 def confusion(rows: list[dict]):
     """Per-case summary and confusion matrix (true case × named verdict) as a DataFrame and Markdown."""
     import pandas as pd
