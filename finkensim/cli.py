@@ -260,14 +260,18 @@ def cmd_sweep(args) -> int:
              else f"on a local Dask cluster of {workers} workers"}[executor]
     print(f"{prog}: {sweep.n_runs} runs ({sweep.n_combinations} combinations x {sweep.replicates} replicates) "
           f"of {sweep.duration:g} s, {sweep.design} over {', '.join(sweep.parameters) or 'nothing'}, {where} -> {args.out}")
+    from .sweep import terminate_as_interrupt
+
     try:
-        df = run_sweep(sweep, args.out, executor=executor, workers=args.workers, scheduler=args.scheduler,
-                       resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
+        with terminate_as_interrupt() as caught:  # SIGTERM ends the sweep like Ctrl-C
+            df = run_sweep(sweep, args.out, executor=executor, workers=args.workers, scheduler=args.scheduler,
+                           resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
     except ConfigError as exc:  # SweepError: raised before any run
         raise UsageError(prog, str(exc)) from None
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished runs are kept in {args.out}/parts, finish with --resume", file=sys.stderr)
-        return 130
+        what = "terminated (SIGTERM)" if caught else "interrupted"
+        print(f"{prog}: {what}; finished runs are kept in {args.out}/parts, finish with --resume", file=sys.stderr)
+        return 128 + caught[0] if caught else 130
 
     n_ran, skipped = len(df.attrs["ran"]), len(df) - len(df.attrs["ran"])
     failed = df[df["status"] != "ok"]
