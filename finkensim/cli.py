@@ -166,14 +166,12 @@ def cmd_run(args) -> int:
         fig, _ = viz.plot_arena(world, traj.pose[k, 0, :, :2], traj.pose[k, 0, :, 2], traj.theta[k, 0],
                                 trails=traj.pose[k0:k + 1, 0], t=float(traj.t[k]),
                                 title="Arena at the largest wall deflection")
-        path = out / "arena.png"
-        fig.savefig(path, dpi=130)
+        path = viz.save_png(fig, out / "arena.png", dpi=130, colors=None)  # atomic, like every output
         plt.close(fig)
         written.append(("arena picture", path, f"t = {traj.t[k]:.1f} s, trails of the last {traj.t[k] - traj.t[k0]:.0f} s"))
 
         fig, _ = viz.plot_wall_response(world, traj)
-        path = out / "wall_response.png"
-        fig.savefig(path, dpi=130)
+        path = viz.save_png(fig, out / "wall_response.png", dpi=130, colors=None)
         plt.close(fig)
         written.append(("wall response", path, "amplitude law and simulated plate angles"))
 
@@ -375,6 +373,7 @@ def _add_gap_validate(sub) -> None:
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
+    from .atomic import write_atomic
     from .gap.validate import CASES, confusion, run_trials
 
     cases = args.cases or list(CASES)
@@ -403,8 +402,8 @@ def cmd_gap_validate(args) -> int:
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     table, md = confusion(rows)
-    table.to_csv(out / "results.csv", index=False)
-    (out / "matrix.md").write_text(md)
+    write_atomic(out / "results.csv", lambda p: table.to_csv(p, index=False))
+    write_atomic(out / "matrix.md", lambda p: p.write_text(md))
     print(md)
     print(f"{prog}: wrote {out / 'matrix.md'} and {out / 'results.csv'}")
     return EXIT_OK

@@ -4,13 +4,13 @@ as a compressed NumPy ``.npz`` archive of named arrays (no pickles; format ``fin
 from __future__ import annotations
 
 import os
-import secrets
 import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_path
 from .encoding import as_text, meta_from_json, meta_to_json
 from .format import FORMAT, OPTIONAL, REQUIRED, STANDARD, FlightLog, FlightLogError
 from .validation import check_dtype
@@ -45,18 +45,8 @@ def save(log: FlightLog, path: str | os.PathLike, *, check_units: bool = True) -
     for k, v in log.extras.items():
         arrays[k] = np.asarray(v)
 
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        with open(tmp, "xb") as f:  # plain open: the file gets the usual umask permissions
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_path(path) as tmp, open(tmp, "xb") as f:  # plain open: the usual umask permissions
+        np.savez_compressed(f, **arrays)
 
 
 def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = True) -> FlightLog:
