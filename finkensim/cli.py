@@ -137,13 +137,14 @@ def cmd_run(args) -> int:
     from .scenario import simulate_flight
 
     cfg = _load_scenario_arg(prog, args.scenario)
-    out = _output_dir(prog, args.out)
+    _output_dir(prog, args.out, create=False)  # created once the flight ran: bad input leaves nothing behind
 
     t0 = time.perf_counter()
     try:
         log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
+    out = _output_dir(prog, args.out)
     t_sim = time.perf_counter() - t0
     sim = world.cfg.simulation
     print(f"{prog}: simulated {sim.duration:g} s of {world.n_copters} copters "
