@@ -100,3 +100,12 @@ def test_gap_refuses_before_building_ensembles(monkeypatch):
     monkeypatch.setenv(MEMORY_ENV, "1000")
     with pytest.raises(MemoryBudgetError, match=r"the diagnosis of 1 flight\(s\) would hold about .*gap.draws"):
         Diagnosis([log], ["a.npz"], load_config(None))
+
+
+def test_start_spacing_warning_holds_above_200_copters():
+    from finkensim.world import World
+
+    cfg = config_from_dict({"copters": {"n": 300, "min_separation": 1.0, "radius": 0.05},
+                            "arena": {"width": 6.0, "length": 8.0}})
+    with pytest.warns(RuntimeWarning, match="copters.min_separation = 1.0 m could not be met for 300 copters"):
+        World(cfg).init(seed=0)
