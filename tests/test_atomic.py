@@ -101,3 +101,27 @@ def test_sweep_outputs_are_atomic(tmp_path, monkeypatch):
     names = sorted(p.name for p in (tmp_path / "out").rglob("*"))
     assert "results.parquet" not in names and not [n for n in names if ".tmp" in n]
     assert "run-00000.parquet" in names  # the finished run's part is kept (whole)
+
+
+def test_gap_validate_trial_log_is_rewritten_whole_and_resumes(tmp_path, monkeypatch):
+    import json
+
+    import finkensim.gap.validate as gv
+
+    calls = []
+
+    def fake_run_case(case, seed, n_flights=2, duration=60.0):
+        calls.append((case, seed))
+        if len(calls) == 4:
+            raise Boom("killed during the fourth trial")
+        return {"case": case, "seed": seed, "named": case}
+
+    monkeypatch.setattr(gv, "run_case", fake_run_case)
+    log = tmp_path / "trials.jsonl"
+    with pytest.raises(Boom):
+        gv.run_trials(log, ["null", "foreign"], trials=2, seed=0, progress=False)
+    assert [json.loads(line)["seed"] for line in log.read_text().splitlines()] == [0, 0, 1]
+    assert [p.name for p in tmp_path.iterdir()] == ["trials.jsonl"]
+    rows = gv.run_trials(log, ["null", "foreign"], trials=2, seed=0, progress=False)
+    assert [(r["case"], r["seed"]) for r in rows] == [("null", 0), ("foreign", 0), ("null", 1), ("foreign", 1)]
+    assert calls[4:] == [("foreign", 1)]  # only the missing trial ran again

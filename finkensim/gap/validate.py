@@ -18,6 +18,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..atomic import write_text_atomic
 from ..config import Config, load_config
 from ..flightlog import FlightLog
 from ..scenario import simulate_flight
@@ -287,19 +288,20 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=6, prog
 def run_trials(log_path, cases, trials: int, seed: int, n_flights: int = 2, duration: float = 60.0,
                progress: bool = True) -> list[dict]:
     """``trials`` trials of every case (seeds ``seed`` …), trial-major so an interrupted run still has every
-    case's first trials; one JSON line per finished trial in ``log_path`` (a ``pathlib.Path``), read back on
-    the next call so a run continues where it stopped (a torn last line is ignored and run again)."""
+    case's first trials; one JSON line per finished trial in ``log_path`` (a ``pathlib.Path``, rewritten
+    atomically after each trial), read back on the next call so a run continues where it stopped."""
     import json
     import sys
 
     from tqdm import tqdm
 
-    done = {}
+    done, lines = {}, []
     if log_path.exists():
         for line in log_path.read_text().splitlines():
             try:
                 r = json.loads(line)
                 done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
+                lines.append(line)
             except (ValueError, KeyError, TypeError):
                 continue
     rows = []
@@ -309,8 +311,8 @@ def run_trials(log_path, cases, trials: int, seed: int, n_flights: int = 2, dura
         if key not in done:
             r = run_case(case, s, n_flights=n_flights, duration=duration)
             r.update(flights=n_flights, duration=duration)
-            with log_path.open("a") as fh:
-                fh.write(json.dumps(r, default=float) + "\n")  # one write: a line is whole or torn, never mixed
+            lines.append(json.dumps(r, default=float))
+            write_text_atomic(log_path, "\n".join(lines) + "\n")  # whole or not at all, like every output
             done[key] = r
         rows.append(done[key])
     return rows
