@@ -26,18 +26,15 @@ from pathlib import Path
 from typing import Sequence
 
 from . import __version__
+from .cliargs import UsageError
+from .cliargs import load_scenario_arg as _load_scenario_arg
+from .cliargs import one_line as _one_line
+from .cliargs import output_dir as _output_dir
+from .cliargs import use_agg as _use_agg
 
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a reader that went away
-
-
-class UsageError(Exception):
-    """Bad input from the user; ``main`` prints it as one line and returns exit code 2."""
-
-    def __init__(self, prog: str, message: str):
-        super().__init__(message)
-        self.prog = prog
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,10 +42,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):  # noqa: D401 - argparse API
         raise UsageError(self.prog, message)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
 
 
 # ------------------------------------------------------------------------------------------
@@ -80,53 +73,6 @@ def _add_run(sub) -> None:
                    help="store the error-free sensor values in the log (extras *_ideal, ultrasonic_hit_type); "
                         "on by default, --no-ideal leaves them out")
     p.set_defaults(func=cmd_run)
-
-
-def _load_scenario_arg(prog: str, scenario: str | None):
-    from .config import ConfigError
-    from .scenario import load_scenario
-
-    if scenario is None:
-        return load_scenario(None)
-    path = Path(scenario)
-    if not path.exists():
-        raise UsageError(prog, f"scenario file {scenario!r} does not exist")
-    if not path.is_file():
-        raise UsageError(prog, f"scenario {scenario!r} is not a file")
-    try:
-        return load_scenario(path)
-    except ConfigError as exc:
-        msg = str(exc)
-        raise UsageError(prog, msg if str(path) in msg else f"{scenario}: {msg}") from None
-    except UnicodeDecodeError:
-        raise UsageError(prog, f"{scenario}: not a text (TOML) file") from None
-    except OSError as exc:
-        raise UsageError(prog, f"cannot read scenario {scenario!r}: {exc.strerror or exc}") from None
-
-
-def _output_dir(prog: str, out: str, create: bool = True) -> Path:
-    """``out`` created as a directory (with its parents; only checked if not ``create``), or a UsageError
-    naming it and why not."""
-    if not str(out).strip():
-        raise UsageError(prog, "--out '': expected a directory name")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise UsageError(prog, f"--out {str(path)!r} is a file: expected a directory")
-    if not create:
-        return path
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(prog, f"cannot create output directory {str(path)!r}: {exc.strerror or exc}") from None
-    return path
-
-
-def _use_agg() -> None:
-    """Headless plotting for the CLI unless the user chose a backend (or pyplot is already in use)."""
-    if "MPLBACKEND" not in os.environ and "matplotlib.pyplot" not in sys.modules:
-        import matplotlib
-
-        matplotlib.use("Agg")
 
 
 def cmd_run(args) -> int:
@@ -368,6 +314,15 @@ def _add_gap_validate(sub) -> None:
     p.add_argument("--duration", type=float, default=60.0, metavar="S", help="seconds per flight (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, metavar="N", help="first trial seed (default: %(default)s)")
     p.add_argument("--out", default="out/gap-validate", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--conventions", choices=("default", "random"), default="default",
+                   help="how the 'real' flights are recorded: finkensim's defaults, or a random point of the "
+                        "conventions axis per trial (altitude, sonar offset, no-echo value, noise shape, rate, "
+                        "swarm size, tracking noise) (default: %(default)s)")
+    p.add_argument("--pairs", action="store_true", help="also every pair of catalogued effects at once")
+    p.add_argument("--executor", choices=("serial", "process", "dask"), default="serial",
+                   help="where trials run (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=2, metavar="N", help="process/Dask workers (default: %(default)s)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (with --executor dask)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_gap_validate)
 
@@ -375,18 +330,29 @@ def _add_gap_validate(sub) -> None:
 def cmd_gap_validate(args) -> int:
     prog = args.prog
     from .atomic import write_atomic
-    from .gap.validate import CASES, confusion, run_trials
+    from .gap.validate import CASES, all_pairs, confusion, get_case
+    from .gap.validate_sweep import run_trials
 
     cases = args.cases or list(CASES)
-    unknown = [c for c in cases if c not in CASES]
+    if args.pairs:
+        cases += [c for c in all_pairs() if c not in cases]
+    unknown = []
+    for c in cases:
+        try:
+            get_case(c)
+        except (KeyError, ValueError):
+            unknown.append(c)
     if unknown:
-        raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)}")
-    if args.trials < 1 or args.flights < 1:
-        raise UsageError(prog, f"--trials {args.trials}, --flights {args.flights}: expected integers >= 1")
+        raise UsageError(prog, f"unknown cases {unknown}; expected some of {', '.join(CASES)} or pairs EFFECT+EFFECT")
+    if args.trials < 1 or args.flights < 1 or args.workers < 1:
+        raise UsageError(prog, f"--trials {args.trials}, --flights {args.flights}, --workers {args.workers}: "
+                               "expected integers >= 1")
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(prog, f"--duration {args.duration}: expected a finite number of seconds > 0")
     if args.seed < 0:
         raise UsageError(prog, f"--seed {args.seed}: expected an integer >= 0")
+    if args.scheduler and args.executor != "dask":
+        raise UsageError(prog, f"--scheduler {args.scheduler!r} needs --executor dask")
     from .budget import check_memory, flight_arrays
     from .config import ConfigError, load_config
 
@@ -397,9 +363,14 @@ def cmd_gap_validate(args) -> int:
         raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)
     _use_agg()
+    from functools import partial
+
+    from tqdm import tqdm
+
+    bar = None if args.no_progress else partial(tqdm, desc="gap-validate", file=sys.stderr)
     try:
-        rows = run_trials(out / "trials.jsonl", cases, args.trials, args.seed, n_flights=args.flights,
-                          duration=args.duration, progress=not args.no_progress)
+        rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
+                          executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     table, md = confusion(rows)

@@ -106,22 +106,23 @@ def test_sweep_outputs_are_atomic(tmp_path, monkeypatch):
 def test_gap_validate_trial_log_is_rewritten_whole_and_resumes(tmp_path, monkeypatch):
     import json
 
-    import finkensim.gap.validate as gv
+    import finkensim.gap.validate_sweep as vs
 
     calls = []
 
-    def fake_run_case(case, seed, n_flights=2, duration=60.0):
+    def fake_run_case(case, seed, n_flights=2, duration=60.0, conventions=None):
         calls.append((case, seed))
         if len(calls) == 4:
             raise Boom("killed during the fourth trial")
         return {"case": case, "seed": seed, "named": case}
 
-    monkeypatch.setattr(gv, "run_case", fake_run_case)
+    monkeypatch.setattr(vs, "run_case", fake_run_case)
     log = tmp_path / "trials.jsonl"
+    args = (["null", "foreign"], 2, 0, 2, 60.0, "default", tmp_path)
     with pytest.raises(Boom):
-        gv.run_trials(log, ["null", "foreign"], trials=2, seed=0, progress=False)
+        vs.run_trials(*args)
     assert [json.loads(line)["seed"] for line in log.read_text().splitlines()] == [0, 0, 1]
     assert [p.name for p in tmp_path.iterdir()] == ["trials.jsonl"]
-    rows = gv.run_trials(log, ["null", "foreign"], trials=2, seed=0, progress=False)
+    rows = vs.run_trials(*args)
     assert [(r["case"], r["seed"]) for r in rows] == [("null", 0), ("foreign", 0), ("null", 1), ("foreign", 1)]
     assert calls[4:] == [("foreign", 1)]  # only the missing trial ran again

@@ -137,7 +137,7 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     K, N, S = times.size, pos.shape[1], 4
     dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
     sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
-    rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta), wall_geometry(arena), sp, 1.0, times,
+    rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), wall_geometry(arena), sp, 1.0, times,
                    rp.PoseNoise(0.0, 0.0, 0, 0), 1, dist, kind, xt)
     d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
     np.testing.assert_array_equal(dist[..., 0], d_sim)
@@ -154,16 +154,31 @@ def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
     yaw = np.zeros((2, 1))
     theta = np.full((2, arena.n_plates), 0.3)
     out = {}
-    for g in (0.0, 1.0, 2.0):
+    sp = SonarModel.from_config(cfg)._replace(mount_yaw=np.zeros(1), offset=0.0, radius=0.15, max_range=3.0,
+                                              cos_half_angle=0.7, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
+
+    def reading(gain, bulge):
         d, k, x = np.empty((2, 1, 1, 1)), np.empty((2, 1, 1, 1), np.int8), np.empty((2, 1, 1, 1))
-        sp = SonarModel.from_config(cfg)._replace(mount_yaw=np.zeros(1), offset=0.0, radius=0.15, max_range=3.0,
-                                                  cos_half_angle=0.7, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
-        rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta), wall_geometry(arena), sp, g, np.arange(2, dtype=np.int64),
-                       rp.PoseNoise(0.0, 0.0, 0, 0), 1, d, k, x)
-        out[g] = d[0, 0, 0, 0]
+        rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, bulge), wall_geometry(arena), sp, gain,
+                       np.arange(2, dtype=np.int64), rp.PoseNoise(0.0, 0.0, 0, 0), 1, d, k, x)
+        return d[0, 0, 0, 0]
+
+    for g in (0.0, 1.0, 2.0):
+        out[g] = reading(g, np.zeros_like(theta))
     assert out[0.0] == pytest.approx(1.5)
     assert out[0.0] - out[1.0] == pytest.approx(arena.lever * np.sin(0.3))
     assert out[0.0] - out[2.0] == pytest.approx(2 * arena.lever * np.sin(0.3))
+    # the wall_bulge effect's own displacement adds to the configured one, also on a rigid wall (gain 0)
+    assert out[0.0] - reading(0.0, np.full_like(theta, 0.07)) == pytest.approx(0.07)
+    assert out[1.0] - reading(1.0, np.full_like(theta, 0.07)) == pytest.approx(0.07)
+
+
+def test_bulge_displacement_is_amplitude_times_a_gaussian_of_the_plate_distance():
+    d = np.array([[0.0, 0.1, 0.3, 2.0]])
+    np.testing.assert_allclose(rp.bulge_displacement(d, 0.12, 0.3), 0.12 * np.exp(-(d / 0.3) ** 2), rtol=1e-15)
+    assert not rp.bulge_displacement(d, 0.0, 0.3).any()
+    with pytest.raises(ValueError, match="reach"):
+        rp.bulge_displacement(d, 0.1, 0.0)
 
 
 def test_ranging_draws_and_clearance_match_references():
@@ -246,7 +261,7 @@ def test_null_case_reports_no_significant_gap_and_a_spec_report(null_logs):
     assert rep["verdict"]["significant_gap"] is False
     assert rep["verdict"]["effect"] is None
     js = spec_report(rep)
-    assert tuple(js) == SPEC_KEYS
+    assert tuple(js) == tuple(k for k in SPEC_KEYS if k != "correction")  # correction: only when unexplained
     json.dumps(js, allow_nan=False)
     assert js["format"] == "finkensim-gap-report/1"
     assert js["flights"] == {"train": ["a.npz"], "heldout": ["b.npz"]}
@@ -255,7 +270,8 @@ def test_null_case_reports_no_significant_gap_and_a_spec_report(null_logs):
     scores = [e["score_heldout"] for e in js["effects"]]
     assert scores == sorted(scores)
     for loc in js["locations"]:
-        assert set(loc) == {"sensor", "channel", "feature", "low", "high", "gap", "ci", "n"}
+        assert set(loc) == {"sensor", "channel", "feature", "low", "high", "gap", "ci", "n", "significant"}
+        assert loc["significant"] is False  # no significant gap: no location may say otherwise (spec)
         assert loc["sensor"] in ("ultrasonic", "ranging", "imu")
         assert loc["channel"] in ("front", "left", "back", "right", "all")
     feats = {loc["feature"] for loc in js["locations"] if loc["sensor"] == "ultrasonic"}

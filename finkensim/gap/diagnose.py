@@ -27,6 +27,8 @@ from ..budget import check_memory, gap_arrays
 from ..config import Config
 from ..flightlog import FlightLog
 from . import effects as fx
+from ..sensors.sonar_model import ERROR_NONE
+from .censoring import detect_censoring
 from .model import ModelParams
 from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
@@ -90,6 +92,7 @@ class Diagnosis:
                 self.tables[sensor] = tab
         if not self.tables:
             raise GapInputError("the logs carry no sensor readings (ultrasonic, ranging or imu): nothing to compare")
+        self.censoring = self._censoring()
         self._choose_rows()
         self._blocks()
         self._score_cache = LRU(64)
@@ -123,6 +126,21 @@ class Diagnosis:
         self.train_names = [f.name for f in self.flights if f.name not in ho]
         hidx = {f.index for f in self.flights if f.name in ho}
         self._is_heldout = lambda fl, sec: np.isin(fl, list(hidx))
+
+    def _censoring(self) -> dict:
+        """Per range sensor, the :class:`~.censoring.Censoring` of its readings (limits from the config and
+        the logs, fixed for the whole diagnosis so that every model is scored on the same scale)."""
+        out = {}
+        if "ultrasonic" in self.tables:
+            sp = self.base.sonar
+            out["ultrasonic"] = detect_censoring(self.tables["ultrasonic"].y, sp.min_range, sp.max_range,
+                                                 sp.sigma if sp.error != ERROR_NONE else 0.0,
+                                                 margin_floor=0.02 * sp.max_range)
+        if "ranging" in self.tables:
+            r = self.base.ranging
+            out["ranging"] = detect_censoring(self.tables["ranging"].y, -np.inf, r.max_range, 0.0,
+                                              margin_floor=0.05 * r.max_range)
+        return out
 
     def _choose_rows(self):
         rng = np.random.default_rng(self.seed)
@@ -165,7 +183,11 @@ class Diagnosis:
     def _terms(self, sensor, p: ModelParams, rows):
         tab = self.tables[sensor]
         D, period = tab.draws(self.flights, p, rows, self.seed, self.M)
-        return ensemble_terms_grouped(np.ascontiguousarray(D), np.ascontiguousarray(tab.y[rows]), period)
+        y = tab.y[rows]
+        cens = self.censoring.get(sensor)
+        if cens is not None:  # threshold-weighted CRPS: both sides through the same chaining function
+            D, y = cens.draws(D), cens.observed(y)
+        return ensemble_terms_grouped(np.ascontiguousarray(D), np.ascontiguousarray(y), period)
 
     def score_rows(self, sensor, p: ModelParams, rows):
         """Per-row normalised (CRPS, gap) of a sensor under parameters p. Each (len(rows),).

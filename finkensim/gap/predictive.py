@@ -162,6 +162,7 @@ class SonarTable(Table):
         if sp.crosstalk & CROSSTALK_GEOMETRIC and sp.schedule == SCHEDULE_RANDOM_OFFSET:
             G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
         key = ("sonar", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
+               round(p.bulge_amplitude, 9), round(p.bulge_reach, 9),
                sp.ray_angles.tobytes(), p.latency_sonar, sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range)
         hit = self.cache.get(key)
@@ -172,7 +173,7 @@ class SonarTable(Table):
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        rp.sonar_draws(fl.poses, fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G,
+        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach), fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G,
                        dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 
@@ -363,12 +364,13 @@ class ImuTable(Table):
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral
         bias = self.bias_gain[rows, 0] * p.acc_bias_x + self.bias_gain[rows, 1] * p.acc_bias_y
         bias = np.where(ch == 2, p.gyro_bias * ws, bias)
-        white = np.where(ch == 2, p.imu.gyro_sigma, p.imu.acc_sigma)
+        # white-noise density (unit·√s): the log's own sample period sets each sample's std, not the config's dt
+        density = np.where(ch == 2, p.imu.gyro_sigma, p.imu.acc_sigma) * np.sqrt(p.imu.dt)
         acc_walk, gyro_walk = p.walk_density()
         walk = np.where(ch == 2, gyro_walk, acc_walk)
-        dt_mean = ws / self.window
-        # Σ of h white samples times dt, and a bias random walk of std walk·sqrt(t) integrated over the window
-        sd = np.sqrt(self.window * (white * dt_mean) ** 2 + (walk * ws) ** 2 * self.seconds[rows])
+        # Σ of h white samples (std density/√dt each) times dt = density²·window seconds, and a bias random
+        # walk of std walk·sqrt(t) integrated over the window
+        sd = np.sqrt(density ** 2 * ws + (walk * ws) ** 2 * self.seconds[rows])
         out = np.empty_like(ideal)
         gaussian_draws(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch,
                        seed, np.ascontiguousarray(sd), np.ascontiguousarray(bias), out)

@@ -43,7 +43,7 @@ class Flight:
 
     pos (T, N, 2) m, yaw (T, N) rad, yaw_unwrapped (T, N) rad, t (T,) s; theta_unit (T, S_p) rad:
     plate angles of bending walls (config wall parameters, bending on) driven by the logged
-    copters; samples (K,) indices of the time samples used (strided, skipping the first few so
+    copters; plate_distance (T, S_p) m: each plate's distance to the nearest logged copter body; samples (K,) indices of the time samples used (strided, skipping the first few so
     that finite differences have history).
     """
 
@@ -60,6 +60,7 @@ class Flight:
     sigma_xy: float
     sigma_yaw: float
     theta_unit: np.ndarray
+    plate_distance: np.ndarray
     samples: np.ndarray
     sonar_yaw: np.ndarray | None = None
     sonar_offset: float = 0.0
@@ -71,8 +72,19 @@ class Flight:
 
     @property
     def poses(self) -> "ReplayPoses":
-        """The flight as the sonar kernels see it: logged poses and replayed plate angles."""
-        return ReplayPoses(self.pos, self.yaw, self.theta_unit)
+        """The flight as the sonar kernels see it: logged poses and replayed plate angles, no extra bulge."""
+        return self.poses_with_bulge(0.0, 1.0)
+
+    def poses_with_bulge(self, amplitude: float, reach: float) -> "ReplayPoses":
+        """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)²)`` m,
+        d its distance to the nearest copter body (the ``wall_bulge`` effect; amplitude m, reach m > 0)."""
+        key = (round(float(amplitude), 9), round(float(reach), 9))
+        bulge = self.extras.get(("bulge", key))
+        if bulge is None:
+            bulge = bulge_displacement(self.plate_distance, amplitude, reach)
+            self.extras = {k: v for k, v in self.extras.items() if not (isinstance(k, tuple) and k[0] == "bulge")}
+            self.extras[("bulge", key)] = bulge
+        return ReplayPoses(self.pos, self.yaw, self.theta_unit, bulge)
 
     @property
     def walls(self) -> WallGeometry:
@@ -90,9 +102,10 @@ class Flight:
 
 
 @njit(cache=True)
-def _replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out):
-    """Plate angles (T, S) of walls driven by logged positions pos (T, N, 2), as in a simulation:
-    sample k holds the plates after responding to the positions of samples 1 … k."""
+def _replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
+    """Plate angles theta_out (T, S) rad of walls driven by logged positions pos (T, N, 2), as in a
+    simulation (sample k holds the plates after responding to the positions of samples 1 … k), and each
+    plate's distance to the nearest copter body dist_out (T, S) m."""
     T = pos.shape[0]
     S = seg_a.shape[0]
     theta = np.zeros(S)
@@ -100,11 +113,23 @@ def _replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out):
     integ = np.zeros(S)
     dist = np.empty(S)
     for k in range(T):
+        nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
         if k > 0:
-            nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
             walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
         for s in range(S):
             theta_out[k, s] = theta[s]
+            dist_out[k, s] = dist[s]
+
+
+def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float) -> np.ndarray:
+    """Displacement (same shape as plate_distance, m) of a plate at distance d (m) from the nearest copter
+    body: ``amplitude · exp(−(d/reach)²)`` — the ``wall_bulge`` effect's form, set by what a log shows
+    (how far readings shorten, and how close a copter must come), not by hinge height or altitude."""
+    if amplitude == 0.0:
+        return np.zeros_like(plate_distance)
+    if not reach > 0:
+        raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
+    return amplitude * np.exp(-(plate_distance / reach) ** 2)
 
 
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:
@@ -126,7 +151,8 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         pos = np.ascontiguousarray(log.pose[:, :, :2], dtype=float)
         yaw = np.ascontiguousarray(log.pose[:, :, 2], dtype=float)
         theta = np.empty((t.size, arena.n_plates))
-        _replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta)
+        plate_distance = np.empty((t.size, arena.n_plates))
+        _replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
         sx = cfg.gap.tracking_sigma_xy if cfg.gap.tracking_sigma_xy >= 0 else float(meta.get("tracking_sigma_xy", 0.0) or 0.0)
         sy = cfg.gap.tracking_sigma_yaw if cfg.gap.tracking_sigma_yaw >= 0 else float(meta.get("tracking_sigma_yaw", 0.0) or 0.0)
         first = 10  # history for finite differences and smoothing windows
@@ -136,7 +162,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         samples = np.arange(first, t.size, stride, dtype=np.int64)
         f = Flight(name=name, index=i, log=log, t=t, dt=dt, pos=pos, yaw=yaw,
                    yaw_unwrapped=np.unwrap(yaw, axis=0), arena=arena, radius=radius, sigma_xy=sx, sigma_yaw=sy,
-                   theta_unit=theta, samples=samples)
+                   theta_unit=theta, plate_distance=plate_distance, samples=samples)
         if log.ultrasonic is not None:
             f.sonar_yaw = np.ascontiguousarray(log.ultrasonic_yaw, dtype=float)
             f.sonar_offset = float(log.ultrasonic_offset)
@@ -183,12 +209,14 @@ def draw_poses(pos, yaw, k, m, noise, pos_out, yaw_out):
 
 class ReplayPoses(NamedTuple):
     """A logged flight as the sonar kernels see it: pos (T, N, 2) m, yaw (T, N) rad, theta (T, S_p) rad plate
-    angles of the replayed walls. The walls themselves are a :class:`~finkensim.sensors.sonar_model.WallGeometry`
+    angles of the replayed walls, bulge (T, S_p) m an extra displacement of each plate toward the arena
+    (the ``wall_bulge`` effect; zeros without it). The walls themselves are a :class:`~finkensim.sensors.sonar_model.WallGeometry`
     passed beside it (numba's parallel loops cannot take a record nested in a record)."""
 
     pos: np.ndarray
     yaw: np.ndarray
     theta: np.ndarray
+    bulge: np.ndarray
 
 
 _ideal_fn = njit(cache=True)(ideal_env.py_func)
@@ -208,6 +236,12 @@ def _sonar_draw(poses, w, sp, gain, k, m, noise, dist, kind, xt):
     buf = np.empty((N, S, 4))
     draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
     shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
+    for p in range(P):
+        b = poses.bulge[k, p]
+        pa[p, 0] += b * w.normal[p, 0]
+        pa[p, 1] += b * w.normal[p, 1]
+        pb[p, 0] += b * w.normal[p, 0]
+        pb[p, 1] += b * w.normal[p, 1]
     _ideal_fn(pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, dist, kind, np.empty((N, S, 2)))
     fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
     for n in range(N):

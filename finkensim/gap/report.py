@@ -54,38 +54,49 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
     lines.append(f"Sensors compared: {', '.join(priv.sensors)} "
                  f"({', '.join(f'{k}: {n} readings' for k, n in priv.n_readings.items())})")
     lines.append("")
-    ci = priv.gap_before_ci
     lines.append("## Verdict")
     lines.append("")
+    cal, cal_ci = priv.calibration_gap, priv.calibration_ci
     if not v["significant_gap"]:
-        lines.append(f"**No significant gap.** The held-out readings are consistent with the simulator: mean gap "
-                     f"{_fmt(report['gap_before'])} (95 % CI {_fmt(ci[0])} … {_fmt(ci[1])}).")
+        lines.append(f"**No significant gap.** The held-out readings are consistent with the simulator: mean "
+                     f"calibration gap {_fmt(cal)} (95 % CI {_fmt(cal_ci[0])} … {_fmt(cal_ci[1])}).")
     elif v["unexplained"]:
-        lines.append(f"**Significant gap, unexplained.** Mean held-out gap {_fmt(report['gap_before'])} (95 % CI "
-                     f"{_fmt(ci[0])} … {_fmt(ci[1])}); no catalogued effect removes at least {100 * priv.unexplained_shrink:.0f} % of it (best single "
-                     f"effect: {report['effects'][0]['name'] if report['effects'] else 'none'}, held-out shrink "
-                     f"{_fmt(v['shrink_heldout'], 2)}). Where it lies is listed below.")
+        lines.append(f"**Significant gap, unexplained.** Mean held-out calibration gap {_fmt(cal)} (95 % CI "
+                     f"{_fmt(cal_ci[0])} … {_fmt(cal_ci[1])}) on {', '.join(priv.gap_sensors)}; no catalogued effect "
+                     f"explains at least {100 * priv.unexplained_shrink:.0f} % of it (best single effect: "
+                     f"{report['effects'][0]['name'] if report['effects'] else 'none'}; selected effects together: "
+                     f"shrink {_fmt(v['shrink_heldout'], 2)}). Where it lies is listed below.")
+        c = report.correction
+        if c is not None:
+            lines += ["", f"A data-driven correction of {c['sensor']} ({c['method']}) removes "
+                          f"{100 * c['shrink_heldout']:.0f} % of the held-out gap: reality departs from the "
+                          "simulator in a way the catalogue does not describe (see its partial dependence below)."]
     else:
         e = next(e for e in report["effects"] if e["name"] == v["effect"])
         params = ", ".join(f"{k} = {_fmt(x, 4)}" for k, x in e["params"].items())
-        lines.append(f"**{v['effect']}** explains the gap: fitted on the training flights ({params}), it shrinks the "
-                     f"held-out gap by {100 * v['shrink_heldout']:.0f} % (from {_fmt(report['gap_before'])} to "
-                     f"{_fmt(e['gap_after_heldout'])}).")
-        if priv.ties:
-            lines.append("")
-            lines.append(f"Near ties (held-out improvement within {priv.tie_tolerance:.0%} of the best): "
-                         f"{', '.join(priv.ties)}. Treat the choice between them as ambiguous.")
-        if len(priv.added) > 1:
-            lines.append("")
-            lines.append(f"Forward selection added: {', '.join(priv.added)} (total held-out shrink "
-                         f"{100 * priv.total_shrink:.0f} %).")
+        lines.append(f"**{v['effect']}** explains the gap: fitted on the training flights ({params}), it removes "
+                     f"{100 * e['shrink_heldout']:.0f} % of the held-out gap (from {_fmt(report['gap_before'])} "
+                     f"to {_fmt(e['gap_after_heldout'])}).")
+        if len(v["effects"]) > 1:
+            lines += ["", f"Several effects at once: {', '.join(v['effects'])} (refitted jointly; together they remove "
+                          f"{100 * v['shrink_heldout']:.0f} %)."]
+        if v["ambiguous"]:
+            lines += ["", f"Ambiguous: {', '.join(v['ambiguous'])} improve the held-out score within "
+                          f"{priv.tie_tolerance:.0%} of {v['effect']}. Do not trust the name alone."]
     lines.append("")
-    lines.append(f"Score: `{report['score']}`: per reading, CRPS minus its expectation under the model, divided by "
-                 "the sensor's base mean absolute error; 0 when reality could have come from the simulator.")
+    lines.append(f"Scores: `{report['score']}`. Per reading, the threshold-weighted CRPS (readings at a range limit "
+                 "are censored, so how a tool records a lost echo cannot make a gap; limits: "
+                 + "; ".join(f"{k} [{_fmt(c['lo'], 2)}, {_fmt(c['hi'], 2)}] m"
+                             + (f", no-echo value(s) {c['no_echo']}" if c["no_echo"] else "")
+                             for k, c in priv.censoring.items())
+                 + ") divided by the sensor's base mean absolute error. The gap is the calibration gap "
+                 "CRPS − E_F[CRPS] (0 on average when reality could have come from the simulator). An effect's shrink "
+                 "is the smaller of 1 − |gap after| / gap before and its share of the best held-out score improvement "
+                 "any predictive achieved, so a wider predictive distribution cannot pass for an explanation.")
     lines.append("")
     if "gap" in figs:
         lines += ["## Where", "", f"![gap by condition]({figs['gap']})", ""]
-    sig = set(priv.significant_locations)
+    sig = {i for i, loc in enumerate(report["locations"]) if loc.get("significant")}
     lines.append("| sensor | channel | feature | bin | gap | 95 % CI | n | significant |")
     lines.append("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for i, loc in enumerate(report["locations"][:max_locations]):
@@ -104,7 +115,10 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
     if "waterfall" in figs:
         lines += ["", "## How far", "", f"![waterfall]({figs['waterfall']})", ""]
     for w in priv.waterfall:
-        lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])}")
+        lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])} (calibration gap "
+                     f"{_fmt(w.get('calibration_gap'))})")
+    if "correction" in figs:
+        lines += ["", "## Data-driven correction", "", f"![correction]({figs['correction']})"]
     lines.append("")
     lines.append(f"_Computed in {priv.seconds:.0f} s; bootstrap blocks of "
                  f"{priv.block_seconds:.1f} s._")
@@ -112,7 +126,7 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
 
 
 def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
-    """gap_by_condition.png, effects.png, waterfall.png (matplotlib, Agg-safe)."""
+    """gap_by_condition.png, effects.png, waterfall.png and, with a correction, correction.png (Agg-safe)."""
     import matplotlib
 
     if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
@@ -142,7 +156,7 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
         paths["effects"] = _barh(out / "effects.png", [e["name"] for e in effs],
                                  [e["shrink_heldout"] if e["shrink_heldout"] is not None else 0.0 for e in effs],
                                  ["C2" if e["name"] == report["verdict"]["effect"] else "C0" for e in effs],
-                                 "held-out gap shrink when the effect is added and fitted (1 = gap removed)",
+                                 "held-out shrink when the effect is added and fitted (1 = gap removed)",
                                  "Candidate effects, best held-out score first", width=7, fontsize=9)
     wf = priv.waterfall
     if wf:
@@ -156,11 +170,25 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
         ax.set_xticks(range(len(wf)))
         ax.set_xticklabels([w["step"] for w in wf], rotation=20, ha="right", fontsize=9)
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_ylabel("held-out gap")
+        ax.set_ylabel("held-out gap left")
         ax.set_title("How far the gap shrinks")
         fig.tight_layout()
         paths["waterfall"] = out / "waterfall.png"
         save_png(fig, paths["waterfall"], dpi=110, colors=None)
+        plt.close(fig)
+    corr = priv.correction
+    if report.correction is not None and corr is not None and corr.partial_dependence.get(corr.sensor):
+        pd = corr.partial_dependence[corr.sensor]
+        fig, axes = plt.subplots(1, len(pd), figsize=(4 * len(pd), 3.2), squeeze=False)
+        for ax, (feat, (grid, avg)) in zip(axes[0], pd.items()):
+            ax.plot(grid, avg, "C3-")
+            ax.axhline(0, color="k", lw=0.8)
+            ax.set_xlabel(feat)
+            ax.set_ylabel(f"median correction of {corr.sensor}")
+        fig.suptitle("Data-driven correction: partial dependence on the located features", fontsize=10)
+        fig.tight_layout()
+        paths["correction"] = out / "correction.png"
+        fig.savefig(paths["correction"], dpi=110)
         plt.close(fig)
     return paths
 

@@ -16,7 +16,7 @@ import numpy as np
 __all__ = ["SPEC_KEYS", "FORMAT", "GapDetails", "GapReport", "json_safe"]
 
 FORMAT = "finkensim-gap-report/1"
-SPEC_KEYS = ("format", "flights", "score", "gap_before", "locations", "effects", "verdict")
+SPEC_KEYS = ("format", "flights", "score", "gap_before", "locations", "effects", "verdict", "correction")
 
 
 def json_safe(x):
@@ -45,7 +45,11 @@ class GapDetails:
     on the gap sensors; ties: effects within ``tie_tolerance`` of the best; significant_locations: indices
     into ``locations``; scales: sensor → score scale; sensors, n_readings: what was compared; seconds:
     wall time; block_seconds: bootstrap block length (s); catch_all: catch-all effects among the
-    candidates; tie_tolerance, unexplained_shrink: the settings used.
+    candidates; tie_tolerance, unexplained_shrink: the settings used; calibration_gap, calibration_ci: the
+    held-out mean of E|X − y| − E|X − X'| (zero-mean when the logs could have come from the model; the
+    significance test) and its CI; best_score: the best held-out score of any predictive built (the
+    reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
+    score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None.
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -66,6 +70,11 @@ class GapDetails:
     catch_all: list = field(default_factory=list)
     tie_tolerance: float = 0.1
     unexplained_shrink: float = 0.7
+    calibration_gap: float = math.nan
+    calibration_ci: list = field(default_factory=lambda: [math.nan, math.nan])
+    best_score: float = math.nan
+    censoring: dict = field(default_factory=dict)
+    correction: object = None
 
 
 @dataclass
@@ -75,7 +84,8 @@ class GapReport:
     flights: {"train": [...], "heldout": [...]}; score: the score's name; gap_before: mean held-out gap of
     the configured model; locations: ranked bins ({sensor, channel, feature, low, high, gap, ci, n});
     effects: every candidate's fit ({name, params, score_heldout, gap_after_train, gap_after_heldout,
-    shrink_heldout}); verdict: {effect, shrink_heldout, unexplained, significant_gap}.
+    shrink_heldout}); verdict: {effect, effects, ambiguous, shrink_heldout, unexplained, significant_gap};
+    correction: {sensor, features, shrink_heldout, method} when the gap is unexplained, else None.
     """
 
     flights: dict
@@ -84,6 +94,7 @@ class GapReport:
     locations: list
     effects: list
     verdict: dict
+    correction: dict | None = None
     details: GapDetails = field(default_factory=GapDetails)
     format: str = FORMAT
 
@@ -95,7 +106,7 @@ class GapReport:
 
     def to_spec(self) -> dict:
         """The JSON document of ``spec/gap-report.md``: exactly its keys, JSON-safe (non-finite → null)."""
-        return json_safe({k: getattr(self, k) for k in SPEC_KEYS})
+        return json_safe({k: getattr(self, k) for k in SPEC_KEYS if k != "correction" or self.correction is not None})
 
     def to_json(self) -> str:
         """:meth:`to_spec` as JSON text (strict: no NaN)."""

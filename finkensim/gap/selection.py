@@ -15,14 +15,17 @@ import numpy as np
 
 from ..config import Config
 from . import effects as fx
-from .diagnose import Diagnosis
+from .correction import fit_correction
+from .diagnose import Diagnosis, FitResult
 from .replay import GapInputError
 from .result import GapDetails, GapReport
+from .shrink import ShrinkMeter
 
 __all__ = ["run_diagnosis", "diagnose"]
 
 
-def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4) -> GapReport:
+def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4,
+                  with_correction: bool = True) -> GapReport:
     """Locations, effect fits, greedy forward selection and verdict of a prepared :class:`Diagnosis`.
 
     effect_names: the candidate effects (default ``gap.effects``, else the whole catalogue); at most
@@ -40,7 +43,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     base = diag.base
     ev_b, rows_ho = diag.evaluate(base, "heldout")
     gap_vals = {s: g for s, (_, g) in ev_b.items()}
-    gap_before, gap_ci, gap_p = diag.overall(gap_vals, rows_ho)
+    calibration_gap, gap_ci, gap_p = diag.overall(gap_vals, rows_ho)
     base_scores = {s: c for s, (c, _) in ev_b.items()}
     score_before = float(np.mean([np.nanmean(c) for c in base_scores.values()]))
     # significance per sensor (Bonferroni over sensors): a gap in one sensor is not diluted by the
@@ -69,71 +72,152 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         r = diag.score_heldout(diag.fit(e, base))
         first.append(r)
     first.sort(key=lambda r: r.score_heldout)
+    evaluated = [base_scores] + [r.rows_score for r in first]
 
     def improvement(cur_scores, new_scores):
         diff = {s: cur_scores[s] - new_scores[s] for s in cur_scores if s in new_scores}
         return diag.overall(diff, rows_ho)
 
     # greedy forward selection on the held-out score
-    current, cur_scores, cur_gap = base, base_scores, base_gap_sig
-    waterfall = [{"step": "configured model", "effect": None, "gap_heldout": gap_before, "ci": list(gap_ci)}]
-    added, pool = [], list(first)
-    ties = []
+    current, cur_scores, cur_gaps, cur_gap, cur_score = base, base_scores, gap_vals, base_gap_sig, score_before
+    steps = [("configured model", None, base_scores, gap_vals, None)]
+    added, pool, ambiguous = [], list(first), []
     while significant and pool and len(added) < max_added:
         if added:  # refit the leading remaining candidates on top of what was added
             pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool[:refit_top]),
                           key=lambda r: r.score_heldout)
-        best = pool[0]
+            evaluated += [r.rows_score for r in pool]
+        best = _pick(pool, cur_score, cfg.tie_tolerance)
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
         best_gap_sig = gap_on(best.rows_gap, gap_sensors)
         gain = (cur_gap - best_gap_sig) / cur_gap if cur_gap > 0 else 0.0
         if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and gain >= cfg.accept_gain):
             break
         if not added:
-            best_imp = score_before - best.score_heldout
-            ties = [r.name for r in pool[1:]
-                    if best_imp > 0 and (score_before - r.score_heldout) >= (1 - cfg.tie_tolerance) * best_imp]
+            ambiguous = _near_ties(pool, best, cur_score, cfg.tie_tolerance)
         added.append(best)
-        current, cur_scores, cur_gap = best.params, best.rows_score, best_gap_sig
-        ev_c, _ = diag.evaluate(current, "heldout")
-        g, ci, _ = diag.overall({s: gg for s, (_, gg) in ev_c.items()}, rows_ho)
-        waterfall.append({"step": f"+ {best.name}", "effect": best.name, "gap_heldout": g, "ci": list(ci),
-                          "params": _clean(best.values)})
+        current, cur_scores, cur_gaps = best.params, best.rows_score, best.rows_gap
+        cur_gap, cur_score = best_gap_sig, best.score_heldout
+        steps.append((f"+ {best.name}", best.name, best.rows_score, best.rows_gap, _clean(best.values)))
         pool = [r for r in pool if r.name != best.name]
-        diag.say(f"  added {best.name}: held-out gap {g:.4f}")
+        diag.say(f"  added {best.name}: held-out score {best.score_heldout:.4f}")
         if not (cur_gap > cfg.margin):
             break
+    if len(added) > 1:
+        diag.say("  refitting the selected effects jointly")
+        joint = _joint_refit(diag, added)
+        if joint is not None:
+            added = joint
+            final = diag.score_heldout(added[-1])
+            current, cur_scores, cur_gaps = final.params, final.rows_score, final.rows_gap
+            evaluated.append(cur_scores)
+            steps.append(("joint refit", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in added}))
 
-    def shrink(g):
-        return float(1.0 - g / gap_before) if gap_before > 0 else 0.0
+    # how much each model explains: calibration and proper score, against everything the diagnosis built
+    shrink_sensors = gap_sensors or list(base_scores)
+    correction = None
+    if significant and with_correction:
+        located = {}
+        for loc in locs:
+            if loc["_significant"] and loc["feature"] not in located.setdefault(loc["sensor"], []):
+                located[loc["sensor"]].append(loc["feature"])
+        correction = fit_correction(diag, current, sorted(gap_sensors, key=lambda s: -per_sensor[s]["gap"]), located)
+    # effects are measured against the catalogue's best; the correction against everything (itself included):
+    # a flexible regression is sharper than any physical model with approximate parts, which is not a defect
+    meter = ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated)
+    gap_before = meter.c0
 
+    waterfall = []
+    for step, name, rows_score, rows_gap, params in steps:
+        g, ci, _ = diag.overall({s: rows_gap[s] for s in shrink_sensors}, {s: rows_ho[s] for s in shrink_sensors})
+        w = {"step": step, "effect": name, "gap_heldout": meter.gap_after(rows_score, rows_gap),
+             "calibration_gap": g, "ci": list(ci)}
+        if params is not None:
+            w["params"] = params
+        waterfall.append(w)
     effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
-                "gap_after_train": r.gap_train, "gap_after_heldout": r.gap_heldout,
-                "shrink_heldout": shrink(r.gap_heldout)} for r in first]
-    total_shrink = float(1.0 - cur_gap / base_gap_sig) if significant and base_gap_sig > 0 else 0.0
-    if not significant:
-        verdict = {"effect": None, "shrink_heldout": 0.0, "unexplained": False, "significant_gap": False}
-    elif not added or total_shrink < cfg.unexplained_shrink:
-        verdict = {"effect": None, "shrink_heldout": shrink(first[0].gap_heldout) if first else 0.0,
-                   "unexplained": True, "significant_gap": True}
+                "gap_after_train": r.gap_train, "gap_after_heldout": meter.gap_after(r.rows_score, r.rows_gap),
+                "shrink_heldout": meter.shrink(r.rows_score, r.rows_gap)} for r in first]
+    total_shrink = meter.shrink(cur_scores, cur_gaps) if significant else 0.0
+    names_added = [r.name for r in added]
+    verdict = {"effect": None, "effects": [], "ambiguous": [], "shrink_heldout": 0.0, "unexplained": False,
+               "significant_gap": significant}
+    if significant and (not added or total_shrink < cfg.unexplained_shrink):
+        verdict.update(unexplained=True, shrink_heldout=total_shrink if added else 0.0)
         diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
-    else:
-        verdict = {"effect": added[0].name, "shrink_heldout": shrink(added[0].gap_heldout), "unexplained": False,
-                   "significant_gap": True}
+    elif significant:
+        verdict.update(effect=names_added[0], effects=names_added, ambiguous=ambiguous, shrink_heldout=total_shrink)
+    correction_block = None
+    if correction is not None and verdict["unexplained"]:
+        correction_block = {"sensor": correction.sensor, "features": correction.features,
+                            "shrink_heldout": ShrinkMeter(base_scores, gap_vals, shrink_sensors,
+                                                          evaluated + [correction.rows_score]).shrink(
+                                correction.rows_score, correction.rows_gap),
+                            "method": correction.method}
 
     details = GapDetails(
         gap_before_ci=list(gap_ci), gap_before_p=gap_p, score_before=score_before,
         per_sensor=per_sensor, gap_sensors=gap_sensors,
-        waterfall=waterfall, added=[r.name for r in added], total_shrink=total_shrink, ties=ties,
-        significant_locations=[i for i, loc in enumerate(locs) if loc["_significant"]],
+        waterfall=waterfall, added=names_added, total_shrink=total_shrink, ties=ambiguous,
+        significant_locations=[i for i, loc in enumerate(locs) if loc["_significant"]] if significant else [],
         scales=diag.scale, sensors=list(diag.tables), n_readings={s: int(t.n) for s, t in diag.tables.items()},
         seconds=time.perf_counter() - t0, block_seconds=diag.block_seconds,
         catch_all=[r.name for r in first if fx.REGISTRY[r.name].catch_all], tie_tolerance=cfg.tie_tolerance,
-        unexplained_shrink=cfg.unexplained_shrink)
+        unexplained_shrink=cfg.unexplained_shrink, calibration_gap=calibration_gap, calibration_ci=list(gap_ci),
+        best_score=meter.s_min,
+        censoring={s: c.to_dict() for s, c in diag.censoring.items()}, correction=correction)
+    locations = [{**{k: v for k, v in loc.items() if not k.startswith("_")},
+                  "significant": bool(loc["_significant"] and significant)} for loc in locs]
     return GapReport(flights={"train": diag.train_names, "heldout": diag.heldout_names}, score="crps_gap_normalised",
-                     gap_before=gap_before,
-                     locations=[{k: v for k, v in loc.items() if not k.startswith("_")} for loc in locs],
-                     effects=effects, verdict=verdict, details=details)
+                     gap_before=gap_before, locations=locations, effects=effects, verdict=verdict,
+                     correction=correction_block, details=details)
+
+
+def _pick(pool, cur_score, tol):
+    """The candidate to add: the best held-out score, unless it is a catch-all and a structured effect's
+    improvement comes within the tie tolerance of it (catch-alls absorb part of any gap)."""
+    best = pool[0]
+    if fx.REGISTRY[best.name].catch_all:
+        imp = cur_score - best.score_heldout
+        for r in pool[1:]:
+            if not fx.REGISTRY[r.name].catch_all and imp > 0 and (cur_score - r.score_heldout) >= (1 - tol) * imp:
+                return r
+    return best
+
+
+def _near_ties(pool, chosen, cur_score, tol):
+    """Other candidates whose held-out improvement is within the tie tolerance of the chosen one's."""
+    imp = cur_score - chosen.score_heldout
+    return [r.name for r in pool if r.name != chosen.name and imp > 0 and (cur_score - r.score_heldout) >= (1 - tol) * imp]
+
+
+def _joint_refit(diag, added):
+    """Refit each selected effect on top of the others (one coordinate-descent round, in selection order);
+    returns the refitted chain of FitResults, or None when it does not lower the training score."""
+    vals = [dict(r.values) for r in added]
+    effects = [fx.REGISTRY[r.name] for r in added]
+
+    def chain(skip=None):
+        p = diag.base
+        for j, (e, v) in enumerate(zip(effects, vals)):
+            if j != skip:
+                p = e.apply(p, v)
+        return p
+
+    def train_score(p):
+        ev, _ = diag.evaluate(p, "fit")
+        return float(np.mean([np.nanmean(c) for c, _ in ev.values()]))
+
+    before = train_score(chain())
+    for k, e in enumerate(effects):
+        vals[k] = diag.fit(e, chain(skip=k)).values
+    if train_score(chain()) > before:
+        return None
+    out, p = [], diag.base
+    for e, v in zip(effects, vals):
+        p = e.apply(p, v)
+        out.append(FitResult(e.name, v, p, math.nan))
+    return out
 
 
 def _clean(values: dict) -> dict:

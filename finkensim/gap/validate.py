@@ -13,21 +13,19 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
 
-from ..atomic import write_text_atomic
 from ..config import Config, load_config
 from ..flightlog import FlightLog
 from ..scenario import simulate_flight
+from .conventions import DEFAULT_CONVENTIONS, Conventions, draw_conventions
 from .diagnose import Diagnosis
 from .selection import run_diagnosis
 from .effects import REGISTRY
 
-POSE_SIGMA_XY = 0.002  # m, tracking noise put on every generated log (and declared in meta)
-POSE_SIGMA_YAW = 0.005  # rad
 
 BASE_UPDATES = {"walls.bending": False, "sonar.crosstalk": "off", "sonar.error": "rayleigh", "sonar.sigma": 0.05,
                 "ranging.error": "mixture", "behaviour.kind": "random_walk"}
@@ -41,6 +39,7 @@ class Case:
     effect: str | None  # catalogued effect expected first; None for null/foreign
     make: Callable
     sensor: str | None = None  # sensor where the gap should be located
+    effects: tuple[str, ...] = ()  # a pair: every effect that must be named
 
 
 def _sign(rng):
@@ -151,7 +150,7 @@ CASES: dict[str, Case] = {
     "null": Case("null", None, lambda r: ({}, None, {})),
     "wall_bulge": Case("wall_bulge", "wall_bulge", lambda r: (
         {"walls.bending": True, "walls.max_amplitude_deg": (a := float(r.uniform(25, 40)))}, None,
-        {"gain": a / 30.0}), "ultrasonic"),
+        {"_max_amplitude_deg": a}), "ultrasonic"),
     "crosstalk_geometric": Case("crosstalk_geometric", "crosstalk_geometric", lambda r: (
         {"sonar.crosstalk": "geometric", "sonar.schedule": "simultaneous",
          "sonar.cone_half_angle_deg": float(r.uniform(35, 50))}, None, {"probability": 1.0}), "ultrasonic"),
@@ -194,35 +193,47 @@ def base_config(updates: dict | None = None) -> Config:
     return load_config().replace({**BASE_UPDATES, **(updates or {})})
 
 
-def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, n_copters: int = 6):
-    """Simulated "real" flights with the case's effect at a random strength.
+def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, n_copters: int | None = None,
+             conventions: Conventions | None = None):
+    """Simulated "real" flights with the case's effect at a random strength, recorded in ``conventions``
+    (default :data:`~finkensim.gap.conventions.DEFAULT_CONVENTIONS`; ``n_copters`` overrides its swarm size).
 
-    Returns (logs, base config for the diagnosis, truth dict). Poses carry tracking noise
-    (σ_xy = 2 mm, σ_ψ = 5 mrad, declared in meta) unless the case is ``pose_noise``, whose noise is
-    larger than declared.
+    Returns (logs, base config for the diagnosis, truth dict). Poses carry the conventions' tracking noise
+    (declared in meta) unless the case is ``pose_noise``, whose noise is larger than declared. For
+    ``wall_bulge`` the simulated walls hang from a hinge 0.6 m above the flight (so they bend at any
+    altitude) while the diagnosed model keeps its own, possibly rigid, walls.
     """
+    conv = conventions or DEFAULT_CONVENTIONS
+    if n_copters is not None:
+        conv = replace(conv, n_copters=int(n_copters))
     rng = np.random.default_rng(seed)
     updates, post, truth = case.make(rng)
-    sim_cfg = base_config({"copters.n": n_copters, **updates})
-    diag_cfg = base_config({"copters.n": n_copters})
+    extra = {}
+    if updates.get("walls.bending"):  # bending walls in the "real" flight: give them a lever at any altitude
+        extra["walls.hinge_height"] = max(1.0, conv.altitude + 0.6)
+    sim_cfg = base_config({**conv.sim_updates(), **extra, **updates})
+    diag_cfg = base_config({"copters.n": conv.n_copters, **conv.diag_updates()})
     logs = []
     for i in range(n_flights):
         log, traj, _ = simulate_flight(sim_cfg, duration=duration, seed=int(seed * 1000 + i), ideal=True)
         true_pose = log.pose.copy()
-        sx, sy = POSE_SIGMA_XY, POSE_SIGMA_YAW
-        if isinstance(post, tuple) and post[0] == "pose":
-            sx = post[1]
-        if isinstance(post, tuple) and post[0] == "nlos":
-            _post_nlos(post[1], post[2], true_pose)(log, sim_cfg, rng)
-        elif callable(post):
-            post(log, sim_cfg, rng)
+        sx, sy = conv.tracking_sigma_xy, conv.tracking_sigma_yaw
+        for pp in (post if isinstance(post, list) else [post]):
+            if isinstance(pp, tuple) and pp[0] == "pose":
+                sx = pp[1]
+            elif isinstance(pp, tuple) and pp[0] == "nlos":
+                _post_nlos(pp[1], pp[2], true_pose)(log, sim_cfg, rng)
+            elif callable(pp):
+                pp(log, sim_cfg, rng)
+        conv.record(log, sim_cfg, rng)
         noise = rng.normal(size=log.pose.shape) * np.array([sx, sx, sy])
         pose = log.pose + noise
         r = sim_cfg.copters.radius
         pose[..., 0] = np.clip(pose[..., 0], 0.0, log.arena[0])
         pose[..., 1] = np.clip(pose[..., 1], 0.0, log.arena[1])
         log.pose = pose
-        log.meta = {**log.meta, "tracking_sigma_xy": POSE_SIGMA_XY, "tracking_sigma_yaw": POSE_SIGMA_YAW,
+        log.meta = {**log.meta, "tracking_sigma_xy": conv.tracking_sigma_xy,
+                    "tracking_sigma_yaw": conv.tracking_sigma_yaw,
                     "source": f"finkensim gap-validate case {case.name}", "copter_radius": r}
         for k in [k for k in log.extras if k.endswith("_ideal") or k == "ultrasonic_hit_type"]:
             del log.extras[k]
@@ -263,82 +274,131 @@ def param_error(report: dict, case: Case, truth: dict) -> float:
     return float(max(errs)) if errs else math.nan
 
 
-def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=6, progress=None) -> dict:
-    """Generate and diagnose one trial; returns a result row."""
-    case = CASES[name]
+def pair_case(a: str, b: str) -> Case:
+    """Both catalogued effects ``a`` and ``b`` at once (each at its own random strength). ValueError when
+    they need different values of the same simulator setting (e.g. two cross-talk modes)."""
+    ca, cb = CASES[a], CASES[b]
+    if ca.effect is None or cb.effect is None or a == b:
+        raise ValueError(f"pair {a!r} + {b!r}: expected two different catalogued effects")
+
+    def make(rng):
+        ua, pa, ta = ca.make(rng)
+        ub, pb, tb = cb.make(rng)
+        clash = sorted(k for k in ua.keys() & ub.keys() if ua[k] != ub[k])
+        if clash:
+            raise ValueError(f"pair {a!r} + {b!r}: both set {', '.join(clash)}")
+        truth = {f"{a}.{k}": v for k, v in ta.items()} | {f"{b}.{k}": v for k, v in tb.items()}
+        return {**ua, **ub}, [pa, pb], truth
+
+    return Case(f"{a}+{b}", a, make, None, effects=(a, b))
+
+
+def all_pairs() -> list[str]:
+    """Names ``a+b`` of every pair of catalogued effects that can be simulated together."""
+    names = [c.name for c in CASES.values() if c.effect is not None]
+    out = []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            try:
+                pair_case(a, b).make(np.random.default_rng(0))
+            except ValueError:
+                continue
+            out.append(f"{a}+{b}")
+    return out
+
+
+def get_case(name: str) -> Case:
+    """A case by name: a key of :data:`CASES` or a pair ``a+b``."""
+    if name in CASES:
+        return CASES[name]
+    if "+" in name:
+        a, b = name.split("+", 1)
+        if a in CASES and b in CASES:
+            return pair_case(a, b)
+    raise KeyError(name)
+
+
+def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, progress=None,
+             conventions: Conventions | str | None = None) -> dict:
+    """Generate and diagnose one trial; returns a result row. conventions: a :class:`Conventions`, "random"
+    (drawn from the axis with the trial's seed) or None (the defaults)."""
+    case = get_case(name)
+    if conventions == "random":
+        conventions = draw_conventions(np.random.default_rng([seed, 7]))
     t0 = time.perf_counter()
-    logs, cfg, truth = generate(case, seed, n_flights=n_flights, duration=duration, n_copters=n_copters)
+    logs, cfg, truth = generate(case, seed, n_flights=n_flights, duration=duration, n_copters=n_copters,
+                                conventions=conventions)
     names = [f"{name}-{seed}-{i}.npz" for i in range(len(logs))]
     report = run_diagnosis(Diagnosis(logs, names, cfg, progress=progress))
     v = report["verdict"]
     named = v["effect"]
+    if case.effects:
+        correct = v["significant_gap"] and not v["unexplained"] and set(case.effects) <= set(v["effects"])
+    elif name == "null":
+        correct = not v["significant_gap"]
+    else:
+        correct = v["unexplained"] if case.effect is None else named == case.effect
+    corr = report.correction
     return {
         "case": name, "seed": seed, "truth": {k: v_ for k, v_ in truth.items()},
-        "significant": v["significant_gap"], "named": named, "unexplained": v["unexplained"],
-        "correct": (not v["significant_gap"]) if name == "null" else (v["unexplained"] if case.effect is None
-                                                                      else named == case.effect),
+        "conventions": (conventions or DEFAULT_CONVENTIONS).to_dict(),
+        "significant": v["significant_gap"], "named": named, "effects": list(v["effects"]),
+        "ambiguous": list(v["ambiguous"]), "unexplained": v["unexplained"], "correct": bool(correct),
+        "flagged_locations": sum(bool(loc.get("significant")) for loc in report["locations"]),
         "location_ok": location_ok(report, case, truth), "param_error": param_error(report, case, truth),
         "shrink_heldout": next((e["shrink_heldout"] for e in report["effects"] if e["name"] == case.effect), math.nan)
-        if case.effect else v["shrink_heldout"],
+        if case.effect and not case.effects else v["shrink_heldout"],
+        "correction_shrink": corr["shrink_heldout"] if corr else math.nan,
         "gap_before": report["gap_before"], "seconds": time.perf_counter() - t0,
         "top_effects": [e["name"] for e in report["effects"][:3]],
     }
 
 
-def run_trials(log_path, cases, trials: int, seed: int, n_flights: int = 2, duration: float = 60.0,
-               progress: bool = True) -> list[dict]:
-    """``trials`` trials of every case (seeds ``seed`` …), trial-major so an interrupted run still has every
-    case's first trials; one JSON line per finished trial in ``log_path`` (a ``pathlib.Path``, rewritten
-    atomically after each trial), read back on the next call so a run continues where it stopped."""
-    import json
-    import sys
-
-    from tqdm import tqdm
-
-    done, lines = {}, []
-    if log_path.exists():
-        for line in log_path.read_text().splitlines():
-            try:
-                r = json.loads(line)
-                done[(r["case"], r["seed"], r.get("flights"), r.get("duration"))] = r
-                lines.append(line)
-            except (ValueError, KeyError, TypeError):
-                continue
-    rows = []
-    jobs = [(c, seed + t) for t in range(trials) for c in cases]
-    for case, s in tqdm(jobs, desc="gap-validate", disable=not progress, file=sys.stderr):
-        key = (case, s, n_flights, duration)
-        if key not in done:
-            r = run_case(case, s, n_flights=n_flights, duration=duration)
-            r.update(flights=n_flights, duration=duration)
-            lines.append(json.dumps(r, default=float))
-            write_text_atomic(log_path, "\n".join(lines) + "\n")  # whole or not at all, like every output
-            done[key] = r
-        rows.append(done[key])
-    return rows
+def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval (95 % by default) of a binomial proportion k/n."""
+    if n == 0:
+        return math.nan, math.nan
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return max(0.0, c - h), min(1.0, c + h)
 
 
 def confusion(rows: list[dict]):
-    """Per-case summary and confusion matrix (true case × named verdict) as a DataFrame and Markdown."""
+    """Per-case summary (with Wilson 95 % intervals) and confusion matrix (true case × verdict) as a
+    DataFrame and Markdown."""
     import pandas as pd
 
     df = pd.DataFrame(rows)
+    if "flagged_locations" not in df:
+        df["flagged_locations"] = math.nan
+    if "correction_shrink" not in df:
+        df["correction_shrink"] = math.nan
     df["verdict"] = [("no gap" if not r["significant"] else ("unexplained" if r["unexplained"] else r["named"]))
                      for r in rows]
     summary = df.groupby("case", sort=False).agg(
-        trials=("case", "size"), correct=("correct", "mean"),
+        trials=("case", "size"), correct_n=("correct", "sum"), correct=("correct", "mean"),
         location_right=("location_ok", lambda s: s.dropna().astype(float).mean() if s.notna().any() else float("nan")),
         param_error_median=("param_error", "median"), shrink_mean=("shrink_heldout", "mean"),
+        shrink_max=("shrink_heldout", "max"), correction_shrink=("correction_shrink", "mean"),
+        flagged_none=("flagged_locations", lambda s: float((s.fillna(0) == 0).mean())),
         seconds_mean=("seconds", "mean"))
-    mat = pd.crosstab(df["case"], df["verdict"]).reindex(summary.index)
-    lines = ["| case | trials | named first / correct | location right | parameter error (median) | "
-             "held-out shrink (mean) | s per trial |", "| --- | --- | --- | --- | --- | --- | --- |"]
+
+    def pct(x):
+        return "n/a" if x != x else f"{x:.0%}"
+
+    lines = ["| case | trials | correct (Wilson 95 % CI) | no location flagged | location right | parameter error "
+             "(median) | shrink mean / max | correction shrink | s per trial |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for case, r in summary.iterrows():
-        loc = "n/a" if r["location_right"] != r["location_right"] else f"{r['location_right']:.0%}"
+        lo, hi = wilson(int(r["correct_n"]), int(r["trials"]))
         pe = "n/a" if r["param_error_median"] != r["param_error_median"] else f"{r['param_error_median']:.1%}"
-        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} | {loc} | {pe} | {r['shrink_mean']:.2f} | "
-                     f"{r['seconds_mean']:.0f} |")
-    lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict):", ""]
+        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | {pct(r['flagged_none'])} | "
+                     f"{pct(r['location_right'])} | {pe} | {r['shrink_mean']:.2f} / {r['shrink_max']:.2f} | "
+                     f"{pct(r['correction_shrink'])} | {r['seconds_mean']:.0f} |")
+    mat = pd.crosstab(df["case"], df["verdict"]).reindex(summary.index)
+    lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict, the first effect named):", ""]
     cols = list(mat.columns)
     lines.append("| case | " + " | ".join(cols) + " |")
     lines.append("| --- |" + " --- |" * len(cols))

@@ -1,0 +1,107 @@
+"""``finkensim gap-validate`` as a sweep: trials × cases (single effects, pairs, controls), each trial a
+generated-and-diagnosed flight set, resumable from a JSON-lines file, with a progress bar, run serially,
+on a local process pool or on Dask.
+
+Every finished trial is added to ``trials.jsonl`` at once (the file is rewritten atomically), so an interrupted validation keeps what it
+did and a rerun with the same settings continues where it stopped.
+"""
+from __future__ import annotations
+
+import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Callable, Iterator
+
+from ..atomic import write_text_atomic
+from .validate import run_case
+
+__all__ = ["trial_key", "load_done", "run_trials"]
+
+
+def trial_key(case: str, seed: int, flights: int, duration: float, conventions: str) -> tuple:
+    """The identity of a trial in ``trials.jsonl``."""
+    return (case, int(seed), int(flights), float(duration), conventions)
+
+
+def load_done(path: Path) -> dict:
+    """Finished trials of an earlier run: key → row (unreadable lines are skipped: a run killed mid-write)."""
+    done = {}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                r = json.loads(line)
+                done[trial_key(r["case"], r["seed"], r["flights"], r["duration"], r.get("convention_mode", "default"))] = r
+            except (ValueError, KeyError, TypeError):
+                continue
+    return done
+
+
+def _one(job: tuple) -> dict:
+    case, seed, flights, duration, conventions = job
+    row = run_case(case, seed, n_flights=flights, duration=duration,
+                   conventions="random" if conventions == "random" else None)
+    row.update(flights=flights, duration=duration, convention_mode=conventions)
+    return row
+
+
+def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | None) -> Iterator[dict]:
+    if executor == "serial":
+        for job in jobs:
+            yield _one(job)
+        return
+    if executor == "process":
+        import os
+
+        from ..sweep.executors import die_with_parent
+
+        # the workers end with this process, however it ends (SIGKILL included)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=die_with_parent, initargs=(os.getpid(),))
+        finished = False
+        try:
+            futs = [pool.submit(_one, j) for j in jobs]
+            for fut in as_completed(futs):
+                yield fut.result()
+            finished = True
+        finally:
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=finished, cancel_futures=True)
+            if not finished:  # interrupted: stop the running trials now
+                for proc in procs:
+                    proc.terminate()
+        return
+    from ..sweep.executors import dask_client
+    from distributed import as_completed as dask_completed
+
+    client, cluster = dask_client(workers, scheduler)
+    try:
+        for fut in dask_completed([client.submit(_one, j, pure=False) for j in jobs]):
+            yield fut.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration: float, conventions: str,
+               out: Path, executor: str = "serial", workers: int = 2, scheduler: str | None = None,
+               progress: Callable | None = None) -> list[dict]:
+    """Every (case, trial) row, running those not already in ``out/trials.jsonl``; trial-major order so an
+    interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``."""
+    log_path = Path(out) / "trials.jsonl"
+    done = load_done(log_path)
+    keys = [trial_key(c, seed + t, flights, duration, conventions) for t in range(trials) for c in cases]
+    todo = [k for k in keys if k not in done]
+    bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
+    try:
+        for row in _completed(todo, executor, workers, scheduler):
+            done[trial_key(row["case"], row["seed"], flights, duration, conventions)] = row
+            # rewritten whole after every trial (atomically, like every output): never a torn line
+            write_text_atomic(log_path, "".join(json.dumps(r, default=float) + "\n" for r in done.values()))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return [done[k] for k in keys]

@@ -1,0 +1,128 @@
+"""The validation machinery itself: pairs, the conventions axis, Wilson intervals, resumable trials."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from finkensim.cli import main
+from finkensim.config import load_config
+from finkensim.flightlog import FlightLog
+from finkensim.gap import validate_sweep
+from finkensim.gap.conventions import NO_ECHO, NOISE, Conventions, draw_conventions
+from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, wilson
+
+
+def test_wilson_interval_matches_statsmodels_formula_values():
+    # reference values: Wilson (1927) score interval, e.g. 19/20 → (0.7639, 0.9911)
+    lo, hi = wilson(19, 20)
+    assert lo == pytest.approx(0.76387, abs=1e-4) and hi == pytest.approx(0.99111, abs=1e-4)
+    lo, hi = wilson(0, 10)
+    assert lo == 0.0 and hi == pytest.approx(0.27753, abs=1e-4)
+    assert all(math.isnan(x) for x in wilson(0, 0))
+
+
+def test_wilson_interval_covers_at_the_nominal_rate():
+    """Coverage of p = 0.9 with n = 20 over all outcomes, weighted by their binomial probability: ≥ 0.93."""
+    n, p = 20, 0.9
+    cover = sum(stats.binom.pmf(k, n, p) for k in range(n + 1) if wilson(k, n)[0] <= p <= wilson(k, n)[1])
+    assert cover >= 0.93
+
+
+def test_pairs_combine_two_effects_and_refuse_clashing_settings():
+    pairs = all_pairs()
+    singles = [c.name for c in CASES.values() if c.effect is not None]
+    assert len(pairs) >= len(singles) * (len(singles) - 1) // 2 - 5  # only a few pairs clash
+    assert "crosstalk_geometric+crosstalk_constant" not in pairs  # both set sonar.crosstalk
+    case = get_case("sonar_bias+latency")
+    assert case.effects == ("sonar_bias", "latency")
+    updates, posts, truth = case.make(np.random.default_rng(1))
+    assert len(posts) == 2 and any(k.startswith("sonar_bias.") for k in truth)
+    with pytest.raises(ValueError, match="both set"):
+        pair_case("crosstalk_geometric", "crosstalk_constant").make(np.random.default_rng(0))
+    with pytest.raises(KeyError):
+        get_case("nonsense+latency")
+
+
+def test_conventions_axis_draws_every_convention_and_rejects_unknown_ones():
+    rng = np.random.default_rng(0)
+    draws = [draw_conventions(rng) for _ in range(300)]
+    assert {d.no_echo for d in draws} == set(NO_ECHO) and {d.noise for d in draws} == set(NOISE)
+    assert min(d.altitude for d in draws) >= 0.3 and max(d.altitude for d in draws) <= 1.2
+    assert {d.n_copters for d in draws} == set(range(3, 11))
+    with pytest.raises(ValueError, match="no_echo"):
+        Conventions(no_echo="nan")
+
+
+def _log_with_sonar(y, hit):
+    T, N, S = y.shape
+    return FlightLog(t=np.arange(T) * 0.05, arena=np.array([3.0, 4.0]), pose=np.zeros((T, N, 3)),
+                     copter_ids=np.array([f"c{i}" for i in range(N)]), ultrasonic=y.copy(),
+                     ultrasonic_yaw=np.zeros(S), ultrasonic_offset=0.0, extras={"ultrasonic_hit_type": hit})
+
+
+@pytest.mark.parametrize("no_echo", NO_ECHO)
+def test_no_echo_conventions_rewrite_only_lost_echoes(no_echo):
+    cfg = load_config()
+    rng = np.random.default_rng(2)
+    hit = (rng.random((50, 3, 4)) < 0.7).astype(np.int64)
+    y = np.where(hit > 0, rng.uniform(0.3, 2.5, hit.shape), cfg.sonar.max_range)
+    log = _log_with_sonar(y, hit)
+    Conventions(no_echo=no_echo, noise="gaussian").record(log, cfg, rng)
+    lost = hit == 0
+    np.testing.assert_array_equal(log.ultrasonic[~lost], y[~lost])
+    if no_echo == "exact":
+        assert np.all(log.ultrasonic[lost] == cfg.sonar.max_range)
+    elif no_echo == "zero":
+        assert np.all(log.ultrasonic[lost] == 0.0)
+    else:
+        v = log.ultrasonic[lost]
+        assert np.all(v <= cfg.sonar.max_range) and np.all(v > cfg.sonar.max_range - 5 * cfg.sonar.sigma)
+        assert 0.3 < np.mean(v == cfg.sonar.max_range) < 0.7  # clipped half of a symmetric noise
+
+
+def test_laplace_noise_has_the_configured_standard_deviation():
+    cfg = load_config().replace({"sonar.sigma": 0.05})
+    rng = np.random.default_rng(3)
+    y = np.full((4000, 2, 4), 1.5)
+    log = _log_with_sonar(y, np.ones(y.shape, dtype=np.int64))
+    Conventions(noise="laplace").record(log, cfg, rng)
+    e = (log.ultrasonic - 1.5).ravel()
+    se = 0.05 * math.sqrt(2) / math.sqrt(e.size)  # sd of the sample sd for Laplace: σ·sqrt((κ − 1)/4n), κ = 6
+    assert abs(e.std() - 0.05) < 5 * se
+    assert stats.kurtosis(e) == pytest.approx(3.0, abs=0.5)  # Laplace excess kurtosis 3 (Gaussian 0)
+
+
+def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):
+    calls = []
+
+    def fake(job):
+        calls.append(job)
+        case, seed, flights, duration, conv = job
+        return {"case": case, "seed": seed, "significant": case != "null", "named": None, "unexplained": False,
+                "correct": True, "location_ok": None, "param_error": math.nan, "shrink_heldout": 1.0,
+                "seconds": 0.0, "flights": flights, "duration": duration, "convention_mode": conv,
+                "flagged_locations": 0}
+
+    monkeypatch.setattr(validate_sweep, "_one", fake)
+    rows = validate_sweep.run_trials(["null", "sonar_bias"], 2, 5, 1, 10.0, "random", tmp_path)
+    assert len(rows) == 4 and len(calls) == 4
+    with (tmp_path / "trials.jsonl").open("a") as fh:
+        fh.write('{"case": "null", "seed": 9, "trunc')  # a run killed mid-write
+    rows = validate_sweep.run_trials(["null", "sonar_bias"], 3, 5, 1, 10.0, "random", tmp_path)
+    assert len(rows) == 6 and len(calls) == 6  # only the third trial of each case ran
+    assert [json.loads(x)["seed"] for x in (tmp_path / "trials.jsonl").read_text().splitlines()[:4]] == [5, 5, 6, 6]
+    _, md = confusion(rows)
+    assert "Wilson" in md and "| null | 3 | 100% (44%–100%) |" in md
+
+
+@pytest.mark.parametrize("extra,named", [(["--cases", "sonar_bias+sonar_bias"], "sonar_bias+sonar_bias"),
+                                         (["--cases", "null", "--scheduler", "tcp://x:1"], "--scheduler"),
+                                         (["--cases", "null", "--workers", "0"], "--workers 0")])
+def test_gap_validate_names_bad_cases_and_executor_options(extra, named, capsys):
+    assert main(["gap-validate", *extra]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err
