@@ -109,3 +109,21 @@ def test_start_spacing_warning_holds_above_200_copters():
                             "arena": {"width": 6.0, "length": 8.0}})
     with pytest.warns(RuntimeWarning, match="copters.min_separation = 1.0 m could not be met for 300 copters"):
         World(cfg).init(seed=0)
+
+
+def test_a_flight_log_larger_than_memory_is_refused_from_its_headers(tmp_path, monkeypatch, capsys):
+    from finkensim.flightlog import FlightLogError, load, save
+
+    T = 400
+    pose = np.zeros((T, 2, 3))
+    pose[:, 0, :2], pose[:, 1, :2] = (1.0, 1.0), (2.0, 3.0)
+    rg = np.ones((T, 2, 2))
+    rg[:, [0, 1], [0, 1]] = 0.0
+    save(FlightLog(t=0.01 * np.arange(T), arena=np.array([3.0, 4.0]), pose=pose, copter_ids=np.array(["a", "b"]),
+                   ranging=rg), tmp_path / "f.npz")
+    monkeypatch.setenv(MEMORY_ENV, "20000")
+    with pytest.raises(FlightLogError, match=r"f.npz'?: reading the flight log would hold about 34.5 KiB of arrays "
+                                             r"\(pose 18.8 KiB, ranging 12.5 KiB, t 3.12 KiB\)"):
+        load(tmp_path / "f.npz")
+    assert main(["check", str(tmp_path / "f.npz")]) == 2
+    assert "reading the flight log" in _error_line(capsys)
