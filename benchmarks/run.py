@@ -9,7 +9,9 @@ is measured in this run (ratios are only meaningful within one run: the machine 
     (``make bench-peers``; that file comes from an earlier run, and its figures are marked so);
 (b) **full FINken workload** — ``finkensim.swarm`` when importable, else "n/a (finkensim.swarm
     missing)" plus the stand-in (``World.rollout`` + batched sensors);
-for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments.
+for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments;
+(c) **RL environments** (``benchmarks.envs_bench``): env-steps/s of the Gymnasium vector env and the
+    PettingZoo env at N = 10, B ∈ {1, 64, 1024}, sensors on.
 
 **Timing.** Each implementation is warmed up (compiled) first, the number of steps per timed call
 is calibrated to ≈ ``--seconds``, then the implementations of one configuration are timed in turn,
@@ -295,6 +297,10 @@ def report(res: dict) -> str:
                 L.append(f"| {r['N']} | {r['B']} | {_rate(r['env_steps_per_s'])} | {_rate(r['copter_steps_per_s'])} | "
                          f"{r['threads']} | {_mem(r['peak_bytes_per_env'])} | {r['impl']} |")
     L.append("")
+    if res.get("envs"):
+        from .envs_bench import markdown
+
+        L.append(markdown(res["envs"]))
     L.append("## JIT compile time (subprocess; cold = fresh empty NUMBA_CACHE_DIR, warm = cache hit)")
     L.append("")
     if not res.get("compile"):
@@ -329,6 +335,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-compile", action="store_true", help="skip the cold/warm JIT probes")
     ap.add_argument("--no-scaling", action="store_true", help="skip benchmarks/scaling.py")
     ap.add_argument("--no-finken", action="store_true", help="skip workload (b)")
+    ap.add_argument("--no-envs", action="store_true", help="skip (c), the RL environments")
     a = ap.parse_args(argv)
 
     import numba
@@ -363,6 +370,10 @@ def main(argv=None) -> int:
     if not a.quick and not a.no_finken:
         rows, status = bench_finken(ns, bs, seconds, repeats, log, threads)
         res["finken"] = dict(rows=rows, status=status)
+    if not a.quick and not a.no_envs:
+        from . import envs_bench
+
+        res["envs"] = envs_bench.run(seconds, repeats, log, threads)
     if not a.quick and not a.no_compile:
         probes = ["compare"] + ([] if a.no_finken else ["finken"])
         res["compile"] = compile_probes(probes, log)

@@ -31,7 +31,7 @@ def main() -> int:
     subprocess.run([sys.executable, "-m", "finkensim.cli", "gap", str(out / "flight10x600.npz"), "--config",
                     str(out / "rigid.toml"), "--out", str(out / "report"), "--no-progress"], check=True)
     print(f"finkensim gap on 10 copters x 600 s: {time.perf_counter() - t0:.1f} s wall clock "
-          f"(true wall gain {truth['gain']:.3f})")
+          f"(true largest plate angle {truth['_max_amplitude_deg']:.1f} deg)")
     return 0
 
 

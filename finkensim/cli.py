@@ -415,6 +415,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_gap(sub)
     _add_gap_validate(sub)
     _add_check(sub)
+    from .tune.cli import add_parser as add_tune  # optuna is imported only when the command runs
+
+    add_tune(sub)
     return parser
 
 

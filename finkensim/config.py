@@ -284,7 +284,7 @@ class GapConfig(_Section):
     n_bins: int = _f(5, "", 2, 100, doc="quantile bins per continuous feature")
     alpha: float = _f(0.05, "", 0.0, 0.5, lo_open=True, doc="false-discovery rate for locations and significance level")
     margin: float = _f(0.02, "", 0.0, 10.0, doc="practical-significance margin on the normalised gap")
-    accept_gain: float = _f(0.1, "", 0.0, 1.0, doc="an effect is added when it removes at least this fraction of the current gap")
+    accept_gain: float = _f(0.1, "", 0.0, 1.0, doc="an effect is added when it removes at least this fraction of the configured model's gap")
     unexplained_shrink: float = _f(0.7, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained'")
     tie_tolerance: float = _f(0.1, "", 0.0, 1.0, doc="effects whose held-out improvement is within this fraction of the best are near ties")
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")

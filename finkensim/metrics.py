@@ -59,7 +59,7 @@ from .copters import WALL_RELEASE_GAP
 __all__ = [
     "METRICS", "WALL_DISTANCE", "LINK_RANGE", "COVERAGE_CELL", "episode_metrics", "cohesion",
     "nearest_neighbour", "wall_sticking", "collision_onsets", "wall_contact_onsets", "fragmentation",
-    "coverage", "check_metric_names",
+    "coverage", "coverage_cells", "check_metric_names",
 ]
 
 WALL_DISTANCE = 0.3   # m, body-to-wall gap counted as "at the wall" by wall_sticking
@@ -232,14 +232,22 @@ def coverage(pose, arena, cell: float = COVERAGE_CELL) -> np.ndarray:
     """(B,) fraction of the ceil(W/cell) × ceil(L/cell) grid cells visited by some copter centre."""
     pos = _positions(pose)
     T, B, N, _ = pos.shape
+    cells, n_cells = coverage_cells(pos, arena, cell)
+    visited = np.zeros((B, n_cells), dtype=bool)
+    env = np.broadcast_to(np.arange(B)[None, :, None], cells.shape)
+    visited[env.ravel(), cells.ravel()] = True
+    return visited.sum(axis=1) / n_cells
+
+
+def coverage_cells(pos, arena, cell: float = COVERAGE_CELL) -> tuple[np.ndarray, int]:
+    """The coverage grid of :func:`coverage`: (flat cell index of each centre in ``pos`` (..., 2) m, shaped
+    ``pos.shape[:-1]``, int64; the number of cells ceil(W/cell) · ceil(L/cell))."""
+    pos = np.asarray(pos, dtype=np.float64)
     nx = max(1, int(np.ceil(float(arena[0]) / cell - 1e-9)))
     ny = max(1, int(np.ceil(float(arena[1]) / cell - 1e-9)))
     ix = np.clip(np.floor(pos[..., 0] / cell).astype(np.int64), 0, nx - 1)
     iy = np.clip(np.floor(pos[..., 1] / cell).astype(np.int64), 0, ny - 1)
-    visited = np.zeros((B, nx * ny), dtype=bool)
-    env = np.broadcast_to(np.arange(B)[None, :, None], ix.shape)
-    visited[env.ravel(), (ix * ny + iy).ravel()] = True
-    return visited.sum(axis=1) / (nx * ny)
+    return ix * ny + iy, nx * ny
 
 
 def episode_metrics(pose, arena: Sequence[float], radius: float, final_pos=None, names: Iterable[str] | None = None,

@@ -56,6 +56,7 @@ def test_a_utf8_byte_order_mark_is_accepted(tmp_path):
     ["sweep", "SWEEP", "--out", " "],
     ["gap", "LOG", "--out", ""],
     ["gap-validate", "--out", ""],
+    ["tune", "SWEEP", "--out", ""],
 ])
 def test_empty_out_is_a_named_error_for_every_command(argv, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)

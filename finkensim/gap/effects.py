@@ -101,7 +101,7 @@ def _beam(base: ModelParams, v: dict) -> ModelParams:
 
 
 register(Effect(
-    "wall_bulge", ("ultrasonic",), (Param("amplitude", -0.1, 0.3, unit="m"), Param("reach", 0.05, 1.0, unit="m")),
+    "wall_bulge", ("ultrasonic",), (Param("amplitude", -0.1, 0.5, unit="m"), Param("reach", 0.05, 1.5, unit="m")),
     lambda b, v: b.with_(bulge_amplitude=v["amplitude"], bulge_reach=v["reach"]),
     doc="curtain plates bend toward nearby copters (Bernoulli) beyond the configured wall model: each plate "
         "moves toward the arena by amplitude·exp(−(d/reach)²), d its distance to the nearest copter body "

@@ -2,7 +2,7 @@
 and the report (``spec/gap-report.md``).
 
 Every candidate effect is fitted on the training flights and scored on the held-out ones; the best is
-added while it removes a significant share (``gap.accept_gain``) of the remaining held-out gap, up to
+added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap, up to
 ``max_added`` effects. The verdict names the first effect added when the selected effects remove at least
 ``gap.unexplained_shrink`` of the gap on the sensors where it is significant, else ``unexplained``.
 """
@@ -29,8 +29,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     """Locations, effect fits, greedy forward selection and verdict of a prepared :class:`Diagnosis`.
 
     effect_names: the candidate effects (default ``gap.effects``, else the whole catalogue); at most
-    ``max_added`` effects are selected, each step refitting the ``refit_top`` leading candidates on top of
-    what was added. Returns a :class:`~finkensim.gap.result.GapReport`."""
+    ``max_added`` effects are selected, each step refitting on top of what was added every remaining effect
+    on a sensor with a significant gap (and up to ``refit_top`` in all). Returns a :class:`~finkensim.gap.result.GapReport`."""
     cfg = diag.cfg.gap
     t0 = time.perf_counter()
     names = list(effect_names if effect_names is not None else (cfg.effects or fx.REGISTRY))
@@ -56,12 +56,6 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
     significant = bool(gap_sensors)
 
-    def gap_on(values_by_sensor, sensors):
-        """Mean held-out gap over the given sensors (the ones with a significant base gap)."""
-        return float(np.mean([np.nanmean(values_by_sensor[s]) for s in sensors])) if sensors else math.nan
-
-    base_gap_sig = gap_on(gap_vals, gap_sensors)
-
     diag.say("locating the gap")
     locs = diag.locations(base)
 
@@ -79,30 +73,38 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         return diag.overall(diff, rows_ho)
 
     # greedy forward selection on the held-out score
-    current, cur_scores, cur_gaps, cur_gap, cur_score = base, base_scores, gap_vals, base_gap_sig, score_before
+    current, cur_scores, cur_gaps, cur_score = base, base_scores, gap_vals, score_before
     steps = [("configured model", None, base_scores, gap_vals, None)]
     added, pool, ambiguous = [], list(first), []
     while significant and pool and len(added) < max_added:
         if added:  # refit the leading remaining candidates on top of what was added
-            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in pool[:refit_top]),
+            # every remaining effect on a sensor with a gap, plus the leading others (the first round's order
+            # says little once an effect is in)
+            on_gap = [r for r in pool if set(fx.REGISTRY[r.name].sensors) & set(gap_sensors)]
+            again = on_gap + [r for r in pool if r not in on_gap][:max(0, refit_top - len(on_gap))]
+            pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in again),
                           key=lambda r: r.score_heldout)
             evaluated += [r.rows_score for r in pool]
         best = _pick(pool, cur_score, cfg.tie_tolerance)
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
-        best_gap_sig = gap_on(best.rows_gap, gap_sensors)
-        gain = (cur_gap - best_gap_sig) / cur_gap if cur_gap > 0 else 0.0
-        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and gain >= cfg.accept_gain):
+        # the largest share of a gap sensor's configured-model gap this step removes (not of what is left: a
+        # small misfit of the first effect must not let a catch-all in as a second one; per sensor: an effect on
+        # a sensor with a small gap is not diluted by a large gap elsewhere)
+        gain = max((float(np.nanmean(cur_gaps[s]) - np.nanmean(best.rows_gap[s])) / per_sensor[s]["gap"]
+                    for s in gap_sensors if per_sensor[s]["gap"] > 0), default=0.0)
+        score_gain = max((float(np.nanmean(cur_scores[s]) - np.nanmean(best.rows_score[s])) / per_sensor[s]["gap"]
+                          for s in gap_sensors if per_sensor[s]["gap"] > 0), default=0.0)
+        diag.say(f"  candidate {best.name}: improvement p = {imp_p:.3g}, gap gain {gain:.3f}, score gain {score_gain:.3f}")
+        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and max(gain, score_gain) >= cfg.accept_gain):
             break
         if not added:
             ambiguous = _near_ties(pool, best, cur_score, cfg.tie_tolerance)
         added.append(best)
         current, cur_scores, cur_gaps = best.params, best.rows_score, best.rows_gap
-        cur_gap, cur_score = best_gap_sig, best.score_heldout
+        cur_score = best.score_heldout
         steps.append((f"+ {best.name}", best.name, best.rows_score, best.rows_gap, _clean(best.values)))
         pool = [r for r in pool if r.name != best.name]
         diag.say(f"  added {best.name}: held-out score {best.score_heldout:.4f}")
-        if not (cur_gap > cfg.margin):
-            break
     if len(added) > 1:
         diag.say("  refitting the selected effects jointly")
         joint = _joint_refit(diag, added)

@@ -197,6 +197,29 @@ def base_from_table(p: Parser, table, base_dir: Path) -> Config:
     except ConfigError as exc:
         raise p.error(f"[base] {exc}") from None
 
+def range_spec(p, where: str, key: str, kind: str, spec) -> tuple:
+    """(low, high, log) of a ``{low, high[, log]}`` range of config key ``key`` (of type ``kind``), checked:
+    finite numbers (integers for an integer key), low < high, log a bool that needs low > 0. ``p.error``
+    builds the error; ``where`` names the range in it."""
+    if "low" not in spec or "high" not in spec:
+        raise p.error(f"{where} = {dict(spec)!r}: expected both low and high (or choices)")
+    lo, hi, log = spec["low"], spec["high"], spec.get("log", False)
+    if kind not in ("int", "float"):
+        raise p.error(f"{where}: {key} takes {kind} values; use {{choices = [..]}} instead of low/high")
+    for name, v in (("low", lo), ("high", hi)):
+        if not is_number(v) or not math.isfinite(v):
+            raise p.error(f"{where}.{name} = {v!r}: expected a finite number")
+        if kind == "int" and not isinstance(v, int):
+            raise p.error(f"{where}.{name} = {v!r}: {key} is an integer key; expected an integer")
+    if not isinstance(log, bool):
+        raise p.error(f"{where}.log = {log!r}: expected true or false")
+    if not lo < hi:
+        raise p.error(f"{where}: low = {lo!r}, high = {hi!r}: expected low < high")
+    if log and lo <= 0:
+        raise p.error(f"{where}: log = true needs low > 0, got low = {lo!r}")
+    return lo, hi, log
+
+
 def random_design(p: Parser, table, seed) -> list[dict[str, Any]]:
     """The combinations of a ``[random]`` table: ``n_samples`` dicts of dotted key -> drawn value, drawn in
     file order from SeedSequence([seed, 2])."""
@@ -229,22 +252,7 @@ def random_design(p: Parser, table, seed) -> list[dict[str, Any]]:
                 raise p.error(f"{where}.choices = {choices!r}: expected a non-empty list of values")
             draws[key] = lambda rng, c=list(choices): c[int(rng.integers(len(c)))]
             continue
-        if "low" not in spec or "high" not in spec:
-            raise p.error(f"{where} = {dict(spec)!r}: expected both low and high (or choices)")
-        lo, hi, log = spec["low"], spec["high"], spec.get("log", False)
-        if kind not in ("int", "float"):
-            raise p.error(f"{where}: {key} takes {kind} values; use {{choices = [..]}} instead of low/high")
-        for name, v in (("low", lo), ("high", hi)):
-            if not is_number(v) or not math.isfinite(v):
-                raise p.error(f"{where}.{name} = {v!r}: expected a finite number")
-            if kind == "int" and not isinstance(v, int):
-                raise p.error(f"{where}.{name} = {v!r}: {key} is an integer key; expected an integer")
-        if not isinstance(log, bool):
-            raise p.error(f"{where}.log = {log!r}: expected true or false")
-        if not lo < hi:
-            raise p.error(f"{where}: low = {lo!r}, high = {hi!r}: expected low < high")
-        if log and lo <= 0:
-            raise p.error(f"{where}: log = true needs low > 0, got low = {lo!r}")
+        lo, hi, log = range_spec(p, where, key, kind, spec)
         if kind == "int":
             if log:
                 draws[key] = lambda rng, a=lo, b=hi: int(min(b, math.floor(math.exp(rng.uniform(math.log(a), math.log(b + 1))))))

@@ -1,0 +1,140 @@
+"""Externally commanded swarm steps, compiled and batched: the engine under :mod:`finkensim.envs`.
+
+A learning agent (or any outside controller) replaces the behaviour: it sees the sensor readings of
+step k, chooses body-frame velocity commands, and the world advances to k + 1, where the copters sense
+again. :func:`control_step` does "apply commands → :func:`~finkensim.world.step_env` → sense" for B
+environments in ONE numba call (``prange`` over B; no Python per copter or per environment), with the
+very per-environment kernels of the closed loop (:mod:`finkensim.swarm.kernel`): the sonars on the plates
+displaced by their current angles, virtual ranging, the IMU. Sensing step k uses the random numbers of
+step k, so readings driven with zero commands equal a ``"hover"`` :meth:`SwarmSim.rollout
+<finkensim.swarm.SwarmSim.rollout>` bit for bit (``tests/test_envs.py`` checks this).
+
+    ctl = Controlled(sim)                        # sim: a SwarmSim (its config's sensors and models)
+    state = sim.init(n_envs=B, seed=0)
+    obs = ctl.sense(state)                       # readings of step 0 (advances the IMU bias in place)
+    state, obs = ctl.step(state, cmd_body)       # cmd_body (B, N, 2) m/s body frame; the arrays change in place
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..behaviours.attraction import body_to_world_env
+from ..sensors.imu import imu_env
+from ..sensors.ranging_kernels import ranging_env
+from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, ultrasonic_env
+from ..world import step_env
+from .state import RunSpec, SwarmState
+
+__all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
+
+# non-inlined compilations of the inline per-environment kernels (as in swarm/kernel.py: same functions,
+# identical results, a fraction of the compile time)
+_plates_fn = njit(cache=True)(displaced_plates_env.py_func)
+_sonar_fn = njit(cache=True)(ultrasonic_env.py_func)
+_ranging_fn = njit(cache=True)(ranging_env.py_func)
+_imu_fn = njit(cache=True)(imu_env.py_func)
+_body_to_world_fn = njit(cache=True)(body_to_world_env.py_func)
+_step_fn = njit(cache=True)(step_env.py_func)
+
+
+class ControlReadings(NamedTuple):
+    """What the copters sense after a controlled step (float64; a disabled sensor's array stays zero):
+    sonar (B, N, 4) m (front, left, back, right); ranging (B, N, N + M) m; imu_acc (B, N, 2) m/s² body
+    frame; imu_gyro (B, N) rad/s."""
+
+    sonar: np.ndarray
+    ranging: np.ndarray
+    imu_acc: np.ndarray
+    imu_gyro: np.ndarray
+
+
+@njit(cache=True)
+def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs):
+    """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances)."""
+    pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
+    seed = run.seed
+    env = run.env_ids[b]
+    if run.do_sonar:
+        _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+        _sonar_fn(w.pos[b], w.yaw[b], pa, pb, geo.width, geo.length, sp, seed, env, k, sonar_buf, dist, hit_kind,
+                  hit, slot, son[b])
+    if run.do_ranging:
+        _ranging_fn(w.pos[b], beacons, seed, env, k, rp, rng[b])
+    if run.do_imu:
+        _imu_fn(w.acc[b], w.yaw[b], w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
+
+
+@njit(cache=True)
+def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+    """Environment b of :func:`control_step` (work buffers allocated here, outside the ``prange`` body)."""
+    N = w.pos.shape[1]
+    S = geo.plate_a.shape[0]
+    bufs = (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
+            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
+    if run.n_steps == 1:
+        cmd_v = np.empty((N, 2))
+        _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
+        _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N))
+    _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
+               geo, sp, rp, beacons, ip, bufs)
+
+
+@njit(cache=True, parallel=True)
+def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+    """For every environment b (``prange``): if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the
+    headings into the world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate
+    commands; then sense at step ``run.step0 + run.n_steps`` into ``obs`` (a :class:`ControlReadings`).
+    ``w`` (WorldArrays) and ``bias`` (B, N, 3) change in place."""
+    for b in prange(w.pos.shape[0]):
+        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
+
+
+#: the same kernel without threads: a parallel launch costs far more than a small batch's work
+control_step_serial = njit(cache=True)(control_step.py_func)
+#: batches with fewer copters in total than this run :data:`control_step_serial`
+PARALLEL_MIN_COPTERS = 512
+
+
+class Controlled:
+    """Batched externally commanded stepping of a :class:`~finkensim.swarm.SwarmSim`'s world and sensors.
+
+    The state's arrays change in place (the envs own their state); the returned readings are fresh arrays.
+    The behaviour, its wall check and dead reckoning do not run (the commands replace them).
+    """
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.n_ranging = sim.n_copters + sim.beacons.shape[0]
+
+    def _run(self, state: SwarmState, cmd_body, n_steps: int) -> ControlReadings:
+        sim = self.sim
+        ws = state.world
+        B, N = ws.n_envs, ws.n_copters
+        obs = ControlReadings(np.full((B, N, N_SONARS), sim.sonar.max_range), np.zeros((B, N, self.n_ranging)),
+                              np.zeros((B, N, 2)), np.zeros((B, N)))
+        run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, 0, float(sim.dt), sim.enabled["sonar"],
+                      False, sim.enabled["ranging"], sim.enabled["imu"])
+        cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
+        if cmd.shape != (B, N, 2):
+            raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")
+        w = sim.world
+        kernel = control_step if B * N >= PARALLEL_MIN_COPTERS else control_step_serial
+        kernel(ws.arrays(), state.imu_bias, run, cmd, obs, w.copter_params, w.hinge_params, w.geometry,
+                     sim.sonar, sim.ranging.params, sim.beacons, sim.imu)
+        return obs
+
+    def sense(self, state: SwarmState) -> ControlReadings:
+        """Readings at the state's step (the IMU bias in ``state`` advances by one draw)."""
+        return self._run(state, None, 0)
+
+    def step(self, state: SwarmState, cmd_body) -> tuple[SwarmState, ControlReadings]:
+        """Apply ``cmd_body`` (B, N, 2) m/s body frame (the world clips the speed to ``copters.max_speed``),
+        step once, and sense. Returns (the advanced state — its arrays are ``state``'s, changed in place —,
+        the readings of the new step)."""
+        obs = self._run(state, cmd_body, 1)
+        ws = state.world
+        return replace(state, world=replace(ws, step=ws.step + 1)), obs
