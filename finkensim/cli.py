@@ -5,6 +5,7 @@
                     [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
     finkensim gap REAL.npz [REAL2.npz ...] [--config sim.toml] [--out DIR] [--heldout NAME ...]
     finkensim gap-validate [--cases CASE ...] [--trials N] [--flights K] [--duration S] [--out DIR]
+    finkensim check FILE [FILE ...] [--arena W L]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -20,22 +21,20 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Sequence
 
 from . import __version__
+from .cliargs import UsageError
+from .cliargs import load_scenario_arg as _load_scenario_arg
+from .cliargs import one_line as _one_line
+from .cliargs import output_dir as _output_dir
+from .cliargs import use_agg as _use_agg
 
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, as a shell reports a reader that went away
-
-
-class UsageError(Exception):
-    """Bad input from the user; ``main`` prints it as one line and returns exit code 2."""
-
-    def __init__(self, prog: str, message: str):
-        super().__init__(message)
-        self.prog = prog
 
 
 class _Parser(argparse.ArgumentParser):
@@ -43,10 +42,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):  # noqa: D401 - argparse API
         raise UsageError(self.prog, message)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
 
 
 # ------------------------------------------------------------------------------------------
@@ -80,50 +75,6 @@ def _add_run(sub) -> None:
     p.set_defaults(func=cmd_run)
 
 
-def _load_scenario_arg(prog: str, scenario: str | None):
-    from .config import ConfigError
-    from .scenario import load_scenario
-
-    if scenario is None:
-        return load_scenario(None)
-    path = Path(scenario)
-    if not path.exists():
-        raise UsageError(prog, f"scenario file {scenario!r} does not exist")
-    if not path.is_file():
-        raise UsageError(prog, f"scenario {scenario!r} is not a file")
-    try:
-        return load_scenario(path)
-    except ConfigError as exc:
-        msg = str(exc)
-        raise UsageError(prog, msg if str(path) in msg else f"{scenario}: {msg}") from None
-    except UnicodeDecodeError:
-        raise UsageError(prog, f"{scenario}: not a text (TOML) file") from None
-    except OSError as exc:
-        raise UsageError(prog, f"cannot read scenario {scenario!r}: {exc.strerror or exc}") from None
-
-
-def _output_dir(prog: str, out: str) -> Path:
-    """``out`` created as a directory (with its parents), or a UsageError naming it and why not."""
-    if not str(out).strip():
-        raise UsageError(prog, "--out '': expected a directory name")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise UsageError(prog, f"--out {str(path)!r} is a file: expected a directory")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(prog, f"cannot create output directory {str(path)!r}: {exc.strerror or exc}") from None
-    return path
-
-
-def _use_agg() -> None:
-    """Headless plotting for the CLI unless the user chose a backend (or pyplot is already in use)."""
-    if "MPLBACKEND" not in os.environ and "matplotlib.pyplot" not in sys.modules:
-        import matplotlib
-
-        matplotlib.use("Agg")
-
-
 def cmd_run(args) -> int:
     prog = args.prog
     t_start = time.perf_counter()
@@ -132,13 +83,14 @@ def cmd_run(args) -> int:
     from .scenario import simulate_flight
 
     cfg = _load_scenario_arg(prog, args.scenario)
-    out = _output_dir(prog, args.out)
+    _output_dir(prog, args.out, create=False)  # created once the flight ran: bad input leaves nothing behind
 
     t0 = time.perf_counter()
     try:
         log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
+    out = _output_dir(prog, args.out)
     t_sim = time.perf_counter() - t0
     sim = world.cfg.simulation
     print(f"{prog}: simulated {sim.duration:g} s of {world.n_copters} copters "
@@ -161,14 +113,12 @@ def cmd_run(args) -> int:
         fig, _ = viz.plot_arena(world, traj.pose[k, 0, :, :2], traj.pose[k, 0, :, 2], traj.theta[k, 0],
                                 trails=traj.pose[k0:k + 1, 0], t=float(traj.t[k]),
                                 title="Arena at the largest wall deflection")
-        path = out / "arena.png"
-        fig.savefig(path, dpi=130)
+        path = viz.save_png(fig, out / "arena.png", dpi=130, colors=None)  # atomic, like every output
         plt.close(fig)
         written.append(("arena picture", path, f"t = {traj.t[k]:.1f} s, trails of the last {traj.t[k] - traj.t[k0]:.0f} s"))
 
         fig, _ = viz.plot_wall_response(world, traj)
-        path = out / "wall_response.png"
-        fig.savefig(path, dpi=130)
+        path = viz.save_png(fig, out / "wall_response.png", dpi=130, colors=None)
         plt.close(fig)
         written.append(("wall response", path, "amplitude law and simulated plate angles"))
 
@@ -210,7 +160,7 @@ def _add_sweep(sub) -> None:
         help="Monte-Carlo parameter sweep: metrics of many episodes, with summary table and plot",
         description="Run every parameter combination x replicate of a sweep file (see finkensim.sweep) and write "
                     "DIR/parts/run-XXXXX.parquet (one per finished run), DIR/results.parquet, DIR/summary.csv "
-                    "(mean and 95%% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
+                    "(mean and 95% CI per combination) and DIR/summary.png. Exit code 1 if a run failed.",
     )
     p.add_argument("sweep", help="sweep TOML file ([base], [grid] or [random], [variants.NAME], replicates, duration, metrics, seed)")
     p.add_argument("--out", default="out/sweep", metavar="DIR", help="output directory (default: %(default)s)")
@@ -243,6 +193,7 @@ def cmd_sweep(args) -> int:
         raise UsageError(prog, f"--scheduler needs --executor dask, got --executor {executor}")
     if args.workers is not None and args.workers < 1:
         raise UsageError(prog, f"--workers {args.workers}: expected a positive number of workers")
+    _output_dir(prog, args.out, create=False)
     try:
         sweep = Sweep.from_toml(path)
     except ConfigError as exc:
@@ -254,14 +205,18 @@ def cmd_sweep(args) -> int:
              else f"on a local Dask cluster of {workers} workers"}[executor]
     print(f"{prog}: {sweep.n_runs} runs ({sweep.n_combinations} combinations x {sweep.replicates} replicates) "
           f"of {sweep.duration:g} s, {sweep.design} over {', '.join(sweep.parameters) or 'nothing'}, {where} -> {args.out}")
+    from .sweep import terminate_as_interrupt
+
     try:
-        df = run_sweep(sweep, args.out, executor=executor, workers=args.workers, scheduler=args.scheduler,
-                       resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
+        with terminate_as_interrupt() as caught:  # SIGTERM ends the sweep like Ctrl-C
+            df = run_sweep(sweep, args.out, executor=executor, workers=args.workers, scheduler=args.scheduler,
+                           resume=args.resume, overwrite=args.overwrite, progress=not args.no_progress)
     except ConfigError as exc:  # SweepError: raised before any run
         raise UsageError(prog, str(exc)) from None
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished runs are kept in {args.out}/parts, finish with --resume", file=sys.stderr)
-        return 130
+        what = "terminated (SIGTERM)" if caught else "interrupted"
+        print(f"{prog}: {what}; finished runs are kept in {args.out}/parts, finish with --resume", file=sys.stderr)
+        return 128 + caught[0] if caught else 130
 
     n_ran, skipped = len(df.attrs["ran"]), len(df) - len(df.attrs["ran"])
     failed = df[df["status"] != "ok"]
@@ -311,6 +266,7 @@ def cmd_gap(args) -> int:
     from .gap.replay import GapInputError
 
     _use_agg()
+    _output_dir(prog, args.out, create=False)
     cfg = load_config(None)
     if args.config is not None:
         cfg = _load_scenario_arg(prog, args.config)
@@ -373,6 +329,7 @@ def _add_gap_validate(sub) -> None:
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
+    from .atomic import write_atomic
     from .gap.validate import CASES, all_pairs, confusion, get_case
     from .gap.validate_sweep import run_trials
 
@@ -396,6 +353,14 @@ def cmd_gap_validate(args) -> int:
         raise UsageError(prog, f"--seed {args.seed}: expected an integer >= 0")
     if args.scheduler and args.executor != "dask":
         raise UsageError(prog, f"--scheduler {args.scheduler!r} needs --executor dask")
+    from .budget import check_memory, flight_arrays
+    from .config import ConfigError, load_config
+
+    try:  # every trial simulates --flights flights of --duration s of the default scenario
+        check_memory(flight_arrays(load_config(None), duration=args.duration), f"a flight of --duration {args.duration:g} s",
+                     "lower --duration")
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)
     _use_agg()
     from functools import partial
@@ -403,14 +368,34 @@ def cmd_gap_validate(args) -> int:
     from tqdm import tqdm
 
     bar = None if args.no_progress else partial(tqdm, desc="gap-validate", file=sys.stderr)
-    rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
-                      executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar)
+    try:
+        rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
+                          executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar)
+    except ConfigError as exc:
+        raise UsageError(prog, str(exc)) from None
     table, md = confusion(rows)
-    table.to_csv(out / "results.csv", index=False)
-    (out / "matrix.md").write_text(md)
+    write_atomic(out / "results.csv", lambda p: table.to_csv(p, index=False))
+    write_atomic(out / "matrix.md", lambda p: p.write_text(md))
     print(md)
     print(f"{prog}: wrote {out / 'matrix.md'} and {out / 'results.csv'}")
     return EXIT_OK
+
+
+def _add_check(sub) -> None:
+    p = sub.add_parser("check", help="validate flight logs, scenario and sweep files without running them",
+                       description="Read each file as the command using it would (flight logs .npz/.csv, scenario "
+                                   "or sweep TOML), print a one-line summary of a good file and a named error for a "
+                                   "bad one (exit code 2 if any file is bad). See finkensim.checkfiles.")
+    p.add_argument("files", nargs="+", metavar="FILE", help="flight logs (.npz, .csv), scenario or sweep TOML files")
+    p.add_argument("--arena", nargs=2, type=float, default=None, metavar=("W", "L"),
+                   help="arena width and length in m for .csv tracking files (default 3 4)")
+    p.set_defaults(func=cmd_check)
+
+
+def cmd_check(args) -> int:
+    from .checkfiles import check_files
+
+    return check_files(args.files, args.prog, arena=args.arena)
 
 
 # ------------------------------------------------------------------------------------------
@@ -429,6 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_gap(sub)
     _add_gap_validate(sub)
+    _add_check(sub)
     from .tune.cli import add_parser as add_tune  # optuna is imported only when the command runs
 
     add_tune(sub)
@@ -444,7 +430,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise UsageError(parser.prog, "a command is required; try 'finkensim run' or 'finkensim --help'")
         # the prog of the chosen subparser, e.g. "finkensim run", for messages
         args.prog = f"{parser.prog} {args.command}"
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            # a warning is one line "finkensim run: warning: ...", without the Python source line
+            warnings.showwarning = lambda msg, *_, **__: print(f"{args.prog}: warning: {_one_line(msg)}", file=sys.stderr)
+            return int(args.func(args))
     except UsageError as exc:
         print(f"{exc.prog}: error: {_one_line(str(exc))}", file=sys.stderr)
         return EXIT_USAGE

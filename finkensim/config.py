@@ -55,7 +55,8 @@ def _describe_range(meta) -> str:
 
 def _check_number(key, value, meta, kind):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{key} = {value!r}: expected a {kind}, got {type(value).__name__}")
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ConfigError(f"{key} = {value!r}: expected {article} {kind}, got {type(value).__name__}")
     if kind == "integer" and not isinstance(value, int):
         raise ConfigError(f"{key} = {value!r}: expected an integer, got {type(value).__name__}")
     if not math.isfinite(value):
@@ -94,9 +95,11 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
     if t.startswith("tuple"):
         if not isinstance(value, (list, tuple)):
             raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
+        inner = "tuple[float, float]" in t or "tuple[tuple" in t
+        if not inner:  # a bad element is named before a wrong length
+            checked = tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
         if meta["length"] is not None and len(value) != meta["length"]:
             raise ConfigError(f"{key} = {value!r}: expected a list of {meta['length']} numbers, got {len(value)}")
-        inner = "tuple[float, float]" in t or "tuple[tuple" in t
         if inner:  # a list of 2-D points
             pts = []
             for i, p in enumerate(value):
@@ -104,7 +107,7 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
                     raise ConfigError(f"{key}[{i}] = {p!r}: expected a point [x, y] in m")
                 pts.append(tuple(_check_number(f"{key}[{i}]", c, meta, "number") for c in p))
             return tuple(pts)
-        return tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
+        return checked
     raise TypeError(f"unsupported config field type {t} for {key}")  # a bug in this module, not user input
 
 
@@ -340,6 +343,7 @@ class Config:
             built[name] = sec if sec is not None else cls(**PROFILES[profile].get(name, {}))
         if sections:
             raise ConfigError(f"unknown config sections: {', '.join(sections)}")
+        _check_room(built["copters"], built["arena"])
         object.__setattr__(self, "_sections", built)
 
     def __getattr__(self, name):
@@ -393,6 +397,19 @@ class Config:
             check_key(section, key)
             data[section][key] = value
         return config_from_dict(data, _explicit=True)
+
+
+PACKING_DENSITY = math.pi / (2 * math.sqrt(3))  # densest packing of equal discs in the plane (hexagonal)
+
+
+def _check_room(copters, arena) -> None:
+    """Raise if ``copters.n`` bodies of ``copters.radius`` cannot fit in the arena at any arrangement."""
+    body, room = math.pi * copters.radius ** 2, PACKING_DENSITY * arena.width * arena.length
+    if copters.n * body > room:
+        raise ConfigError(
+            f"copters.n = {copters.n}: {copters.n} copters of copters.radius = {copters.radius} m cover "
+            f"{copters.n * body:.3g} m^2, more than the {arena.width} x {arena.length} m arena holds even packed "
+            f"hexagonally ({room:.3g} m^2); expected copters.n <= {int(room / body)}, a larger arena or a smaller radius")
 
 
 def check_key(section: str, key: str | None = None) -> None:
@@ -455,11 +472,16 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
                               else f"config file {str(path)!r} is not a file")
         text = path.read_text()
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(strip_bom(text))
     except tomllib.TOMLDecodeError as exc:
         where = f" in {path}" if path else ""
         raise ConfigError(f"invalid TOML{where}: {exc}") from None
     return config_from_dict(data)
+
+
+def strip_bom(text: str) -> str:
+    """``text`` without a leading UTF-8 byte-order mark (some editors write one; TOML does not allow it)."""
+    return text[1:] if text.startswith("\ufeff") else text
 
 
 def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:

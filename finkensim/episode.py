@@ -17,6 +17,7 @@ from typing import Any, Iterable, Mapping
 from .behaviours.open_loop import OPEN_LOOP_BEHAVIOURS
 from .config import Config, ConfigError
 from .default_scenario import load_scenario
+from .budget import check_memory, episode_arrays
 from .metrics import episode_metrics
 from .swarm import SwarmSim, needs_sensors
 
@@ -26,6 +27,8 @@ __all__ = ["OPEN_LOOP_BEHAVIOURS", "needs_sensors", "check_runnable", "run_episo
 def check_runnable(cfg: Config) -> None:
     """Raise :class:`ConfigError` if :func:`run_episode` cannot run ``cfg``: a config the swarm rejects
     (e.g. attraction-repulsion with the sonars disabled). Runs nothing; the open-loop behaviours always run."""
+    check_memory(episode_arrays(cfg), f"an episode of {cfg.simulation.duration:g} s of {cfg.copters.n} copters",
+                 "shorten the sweep's duration, lower copters.n or raise simulation.dt")
     if needs_sensors(cfg.behaviour.kind):
         SwarmSim(cfg)  # builds the sensor models and checks what the behaviour needs
 

@@ -21,6 +21,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import __version__
+from .budget import check_memory, flight_advice, flight_arrays
 from .config import Config, ConfigError
 from .default_scenario import DEFAULT_SCENARIO_TOML, default_scenario_path, load_scenario
 from .flightlog import FlightLog, validate
@@ -156,6 +157,8 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         cfg = cfg.replace(updates)
     sim = cfg.simulation
     n_steps = _n_steps(sim.duration, sim.dt)
+    check_memory(flight_arrays(cfg, ideal=ideal), f"a flight of {sim.duration:g} s of {cfg.copters.n} copters",
+                 flight_advice(cfg))
 
     swarm = SwarmSim(cfg)
     state0 = swarm.init(n_envs=1, seed=sim.seed)

@@ -247,14 +247,18 @@ class World:
         yaw0 = np.zeros((B, N))
         _init_positions(seed, env_ids, N, c.arena.width, c.arena.length, r, c.copters.min_separation, pos, yaw0)
         if N > 1 and positions is None:
-            d = np.sqrt(((pos[:, :, None, :] - pos[:, None, :, :]) ** 2).sum(-1)) if N <= 200 else None
-            if d is not None:
+            if N <= 200:  # dense pair distances, all environments at once
+                d = np.sqrt(((pos[:, :, None, :] - pos[:, None, :, :]) ** 2).sum(-1))
                 d[:, np.arange(N), np.arange(N)] = np.inf
                 closest = float(d.min())
-                if closest < c.copters.min_separation:
-                    warnings.warn(f"copters.min_separation = {c.copters.min_separation} m could not be met for {N} "
-                                  f"copters in a {c.arena.width} x {c.arena.length} m arena; the closest start pair "
-                                  f"is {closest:.3f} m apart", RuntimeWarning, stacklevel=2)
+            else:  # a k-d tree per environment: the check holds for any N
+                from scipy.spatial import cKDTree
+
+                closest = min(float(cKDTree(p).query(p, k=2)[0][:, 1].min()) for p in pos)
+            if closest < c.copters.min_separation:
+                warnings.warn(f"copters.min_separation = {c.copters.min_separation} m could not be met for {N} "
+                              f"copters in a {c.arena.width} x {c.arena.length} m arena; the closest start pair "
+                              f"is {closest:.3f} m apart", RuntimeWarning, stacklevel=2)
         if positions is not None:
             positions = np.asarray(positions, dtype=float)
             if positions.shape != (B, N, 2):

@@ -519,6 +519,32 @@ def test_non_numeric_arrays(name, value, dtype_word):
     assert_error(lambda: validate(broken(**{name: value})), name, "dtype", dtype_word, "expected float64")
 
 
+@pytest.mark.parametrize("name", ["pose", "t", "ultrasonic", "ranging", "imu_gyro", "ultrasonic_yaw"])
+def test_integer_arrays_other_than_arena_are_errors_not_truncations(tmp_path, name):
+    """spec: an integer pose is an error, not a truncation (issue 13 item 4); in memory and in files."""
+    log = make_log()
+    value = np.asarray(getattr(log, name))
+    as_int = np.round(np.nan_to_num(value, nan=1.0) * (100 if name == "t" else 1)).astype(np.int64)
+    msg = assert_error(lambda: validate(broken(**{name: as_int})), name, "integer dtype int64", "expected float64")
+    assert "nothing is converted" in msg
+    arrays = raw_arrays(log)
+    arrays[name] = as_int
+    path = write_npz(tmp_path / "int.npz", arrays)
+    for check in (True, False):
+        assert_error(lambda: load(path, validate=check), "int.npz", name, "integer dtype", "float64")
+
+
+def test_t_in_milliseconds_gets_a_unit_hint(tmp_path):
+    log = make_log()
+    msg = assert_error(lambda: validate(broken(t=log.t * 1000.0)), "t", "median sample step 50", "milliseconds",
+                       "divide by 1000")
+    validate(broken(t=log.t * 1000.0), check_units=False)  # the heuristic can be turned off
+    p = tmp_path / "ms.csv"
+    p.write_text("t,copter,x,y,yaw\n0,a,1,1,0\n10,a,1,1,0\n20,a,1,1,0\n")
+    assert_error(lambda: from_csv(p, (3, 4)), "ms.csv", "milliseconds")
+    assert "centimetres" not in msg
+
+
 def test_non_numeric_array_in_file(tmp_path):
     arrays = raw_arrays(make_log())
     arrays["ultrasonic"] = arrays["ultrasonic"].astype(str)

@@ -181,7 +181,7 @@ def arena_scenes(draw):
     W = draw(st.sampled_from([3.0, 0.5, 7.3, 40.0]))
     L = draw(st.sampled_from([4.0, 0.5, 11.1]))
     n = draw(st.sampled_from([1, 2, 3, 16, 50]))
-    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n})
+    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n, "copters.n": 1})
     arena = Arena.from_config(cfg.arena, cfg.walls)
     B, N = draw(st.integers(1, 3)), draw(st.integers(0, 12))
     pos = np.empty((B, N, 2))

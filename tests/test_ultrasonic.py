@@ -414,7 +414,7 @@ def ray_scenes(draw):
     L = draw(st.sampled_from([4.0, 0.5, 11.1]))
     frac = draw(st.sampled_from([0.9, 1.0, 0.3]))
     hinge = draw(st.sampled_from([1.0, 2.5, 0.61]))
-    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n_seg,
+    cfg = Config().replace({"arena.width": W, "arena.length": L, "walls.n_segments": n_seg, "copters.n": 1,
                             "walls.plate_width_fraction": frac, "walls.hinge_height": hinge,
                             "walls.plate_length": min(1.0, hinge)})
     arena = Arena.from_config(cfg.arena, cfg.walls)

@@ -37,12 +37,19 @@ def _wrap(a):
 
 # --------------------------------------------------------------------------- invariants under any commands
 
+def _room(width, length, radius) -> int:
+    """Most copters of ``radius`` the arena holds (config.PACKING_DENSITY: more is a ConfigError)."""
+    from finkensim.config import PACKING_DENSITY
+
+    return max(1, int(PACKING_DENSITY * width * length / (math.pi * radius ** 2)))
+
+
 @st.composite
 def scenarios(draw):
     width = draw(st.floats(0.5, 6.0))
     length = draw(st.floats(0.5, 6.0))
     radius = draw(st.floats(0.01, min(2.0, 0.45 * min(width, length))))
-    n = draw(st.integers(1, 4))
+    n = min(draw(st.integers(1, 4)), _room(width, length, radius))
     cfg = Config().replace({
         "arena.width": width, "arena.length": length, "copters.radius": radius, "copters.n": n,
         "copters.min_separation": 0.0, "walls.n_segments": draw(st.integers(1, 4)),
@@ -91,7 +98,8 @@ def test_copters_stay_inside_and_within_limits(scenario):
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 2**31), st.floats(0.5, 6.0), st.floats(0.5, 6.0))
 def test_random_walk_rollout_stays_inside(seed, width, length):
-    cfg = Config().replace({"arena.width": width, "arena.length": length, "copters.min_separation": 0.2})
+    n = min(6, _room(width, length, 0.15))  # at most what fits (crowding is a ConfigError)
+    cfg = Config().replace({"arena.width": width, "arena.length": length, "copters.min_separation": 0.2, "copters.n": n})
     world = World(cfg)
     final, traj = world.rollout(world.init(n_envs=2, seed=seed), n_steps=200, controller=RandomWalk(world.cfg))
     r = cfg.copters.radius

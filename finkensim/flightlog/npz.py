@@ -4,15 +4,18 @@ as a compressed NumPy ``.npz`` archive of named arrays (no pickles; format ``fin
 from __future__ import annotations
 
 import os
-import secrets
 import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_path
+from ..budget import check_memory
+from ..config import ConfigError
 from .encoding import as_text, meta_from_json, meta_to_json
 from .format import FORMAT, OPTIONAL, REQUIRED, STANDARD, FlightLog, FlightLogError
+from .validation import check_dtype
 from .validation import validate as validate_log  # load() has a parameter called validate
 
 __all__ = ["save", "load"]
@@ -44,18 +47,30 @@ def save(log: FlightLog, path: str | os.PathLike, *, check_units: bool = True) -
     for k, v in log.extras.items():
         arrays[k] = np.asarray(v)
 
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    with atomic_path(path) as tmp, open(tmp, "xb") as f:  # plain open: the usual umask permissions
+        np.savez_compressed(f, **arrays)
+
+
+def _member_bytes(npz, key: str) -> float:
+    """Bytes the array ``key`` of an open archive takes once read, from its .npy header (0 if unreadable)."""
     try:
-        with open(tmp, "xb") as f:  # plain open: the file gets the usual umask permissions
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+        with npz.zip.open(key + ".npy") as fh:
+            version = np.lib.format.read_magic(fh)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, _, dtype = read(fh)
+        return float(np.prod(shape, dtype=float)) * dtype.itemsize
+    except Exception:  # noqa: BLE001 - an unreadable member is reported when it is read
+        return 0.0
+
+
+def _check_size(path: Path, npz) -> None:
+    """Refuse (before reading anything) an archive whose arrays would not fit in the available memory."""
+    sizes = {key: _member_bytes(npz, key) for key in npz.files}
+    try:
+        check_memory(sizes, "reading the flight log",
+                     "split the flight into shorter logs or use a machine with more memory")
+    except ConfigError as exc:
+        raise FlightLogError(f"flight log {str(path)!r}: {exc}") from None
 
 
 def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = True) -> FlightLog:
@@ -63,7 +78,9 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
 
     A missing or unreadable file, a file that is not an ``.npz`` archive, an object (pickled)
     array, a wrong or missing ``format``, missing required arrays or a ``meta`` that is not a
-    JSON object always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
+    JSON object, an integer array where the format asks for float64 (anything but ``arena`` and
+    ``ultrasonic_offset``), arrays larger than the available memory (checked from the headers
+    before anything is read, :mod:`finkensim.budget`) always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
     only the content checks of :func:`validate`. Numeric arrays are returned as float64;
     arrays the format does not name go to ``extras``.
     """
@@ -79,6 +96,7 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
         raise FlightLogError(f"flight log {str(p)!r}: is a single .npy array; expected an .npz archive of named arrays")
     raw: dict[str, np.ndarray] = {}
     with npz:
+        _check_size(p, npz)
         for key in npz.files:
             try:
                 raw[key] = npz[key]
@@ -112,6 +130,7 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
             if name == "copter_ids":
                 a = as_text(name, a, scalar=False) if a.dtype.kind in "US" else a
             elif a.dtype.kind in "iuf":
+                check_dtype(name, a)  # an integer pose / t is an error even without validation
                 a = a.astype(np.float64, copy=False)
                 if name == "ultrasonic_offset" and a.shape == ():
                     a = float(a)

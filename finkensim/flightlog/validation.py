@@ -28,6 +28,9 @@ __all__ = [
     "ACC_MM_ABOVE",
     "POSE_SCALE_FACTOR",
     "SCALAR_LIMITS",
+    "T_MS_STEP_ABOVE",
+    "INTEGER_ALLOWED",
+    "check_dtype",
 ]
 
 # --- unit heuristics (documented in :func:`validate`) -------------------------------------
@@ -37,6 +40,7 @@ RANGE_CM_ABOVE = 50.0        # median sonar / ranging reading > 50 "m": cm ...
 RANGE_MM_ABOVE = 500.0       # ... > 500 "m": mm
 ACC_CM_ABOVE = 50.0          # median |imu_acc| > 50 "m/s^2": cm/s^2 ...
 ACC_MM_ABOVE = 500.0         # ... > 500: mm/s^2
+T_MS_STEP_ABOVE = 5.0        # median sample step > 5 "s" (that is plausible / 1000): t in ms
 POSE_SCALE_FACTOR = 10.0     # poses > 10x the arena that fit it after /100 (/1000): cm (mm)
 SCALAR_LIMITS = {            # scalar lengths above these limits (m) look like cm or mm
     "ultrasonic_offset": 1.0,
@@ -46,12 +50,28 @@ SCALAR_LIMITS = {            # scalar lengths above these limits (m) look like c
 }
 
 
-def _check_numeric(name: str, arr: Any) -> np.ndarray:
-    """Return ``arr`` as an array, or raise if its dtype is not a real number type."""
+INTEGER_ALLOWED = ("arena", "ultrasonic_offset")
+"""Numeric arrays that may be stored as integers (whole metres are exact there); every other
+numeric array must be floating point: an integer ``pose``, ``t`` or reading array has been
+truncated (or is in another unit, e.g. t in ms) and is an error, never silently converted."""
+
+
+def check_dtype(name: str, arr: Any) -> np.ndarray:
+    """Return ``arr`` as an array, or raise if its dtype is not a real number type (float64 in the spec).
+
+    Integers are accepted only for :data:`INTEGER_ALLOWED`; an integer ``pose`` would be whole
+    metres, an integer ``t`` whole seconds (or milliseconds): both are named errors.
+    """
     a = np.asarray(arr)
     if a.dtype.kind not in "iuf":
         kind = {"b": "bool", "c": "complex", "O": "object (pickled)", "U": "str", "S": "bytes"}.get(a.dtype.kind, str(a.dtype))
         raise FlightLogError(f"{name} has dtype {a.dtype} ({kind}); expected float64 numbers")
+    if a.dtype.kind in "iu" and name not in INTEGER_ALLOWED and a.size:
+        unit = "s (or ms)" if name == "t" else "whole units"
+        raise FlightLogError(
+            f"{name} has integer dtype {a.dtype}; expected float64 (integers are truncated to {unit}); "
+            f"write {name} as float64, nothing is converted"
+        )
     return a
 
 
@@ -149,11 +169,13 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
     ``tracking_sigma_*`` >= 0, ``source`` str); unique ``copter_ids``; finite poses inside the
     arena up to one copter radius (``meta['copter_radius']``, default 0.15 m); readings: no
     infinities (NaN is the only "no reading"), no negative distances (NaN ignored), ranging
-    diagonal exactly 0 (NaN there is an error); ``ultrasonic_yaw`` finite and within +-2 pi
+    diagonal exactly 0 (NaN there is an error); integer dtypes only for ``arena`` and
+    ``ultrasonic_offset`` (an integer ``pose`` or ``t`` is an error, never truncated); ``ultrasonic_yaw`` finite and within +-2 pi
     (larger values look like degrees); ``ultrasonic_offset`` finite and >= 0.
 
     Unit heuristics (``check_units=False`` turns them off; nothing is ever rescaled):
 
+    * ``t``: a median sample step > 5 s looks like milliseconds.
     * ``arena``: a side > 100 looks like cm, > 1000 like mm (arenas larger than 100 m are
       not supported with the check on).
     * ``pose``: positions outside the arena, more than 10x its size, that fit it after
@@ -175,7 +197,7 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
     _check_blocks(log)
     _check_shapes(arrays, ids)
     t = arrays["t"]
-    _check_time(t)
+    _check_time(t, check_units)
     width, length = _check_arena(arrays["arena"], check_units)
     radius = _check_meta(log.meta, check_units)
     _check_copter_ids(ids)
@@ -204,7 +226,7 @@ def _check_arrays(log: FlightLog) -> tuple[dict[str, np.ndarray], np.ndarray]:
     for name in NUMERIC:
         v = getattr(log, name)
         if v is not None:
-            arrays[name] = _check_numeric(name, v).astype(np.float64, copy=False)
+            arrays[name] = check_dtype(name, v).astype(np.float64, copy=False)
     ids = as_text("copter_ids", log.copter_ids, scalar=False)
     return arrays, ids
 
@@ -274,8 +296,11 @@ def _check_shapes(arrays: Mapping[str, np.ndarray], ids: np.ndarray) -> None:
             raise FlightLogError(f"{name} has shape {shape_text(arrays[name].shape)}; expected {text}")
 
 
-def _check_time(t: np.ndarray) -> None:
-    """``t`` (T,) in s: finite and strictly increasing."""
+def _check_time(t: np.ndarray, check_units: bool) -> None:
+    """``t`` (T,) in s: finite, strictly increasing, and (with ``check_units``) not in ms.
+
+    A median sample step above :data:`T_MS_STEP_ABOVE` s looks like milliseconds.
+    """
     if not np.all(np.isfinite(t)):
         i = int(np.argwhere(~np.isfinite(t))[0, 0])
         raise FlightLogError(f"t[{i}] = {t[i]}; expected finite sample times in s")
@@ -286,6 +311,12 @@ def _check_time(t: np.ndarray) -> None:
             raise FlightLogError(
                 f"t is not strictly increasing: t[{i}] = {fmt(t[i])} s, t[{i + 1}] = {fmt(t[i + 1])} s "
                 f"({plural(int(np.sum(dt <= 0)), 'non-increasing step')}); expected strictly increasing sample times"
+            )
+        step = float(np.median(dt))
+        if check_units and step > T_MS_STEP_ABOVE:
+            raise FlightLogError(
+                f"t has median sample step {fmt(step)}, implausibly long for s (> {fmt(T_MS_STEP_ABOVE)}); "
+                "expected seconds: t looks like milliseconds: divide by 1000"
             )
 
 

@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 from scipy import optimize
 
+from ..budget import check_memory, gap_arrays
 from ..config import Config
 from ..flightlog import FlightLog
 from . import effects as fx
@@ -73,6 +74,14 @@ class Diagnosis:
         self.names = list(names)
         self.say("replaying flights")
         self.flights = prepare_flights(logs, self.names, cfg)
+        readings = 0.0
+        for f in self.flights:  # per sample: sonars, ranging row, IMU channels of every copter
+            lg = f.log
+            per = (lg.ultrasonic.shape[2] if lg.ultrasonic is not None else 0) + (
+                f.n_copters - 1 if lg.ranging is not None else 0) + (3 if lg.imu_acc is not None else 0)
+            readings += f.samples.size * f.n_copters * per
+        check_memory(gap_arrays(cfg, readings), f"the diagnosis of {len(self.flights)} flight(s)",
+                     "lower gap.max_samples_per_flight or gap.draws, or diagnose fewer flights at once")
         self.base = ModelParams.from_config(cfg)
         self._split(heldout)
         self.say("building reading tables")
@@ -145,7 +154,14 @@ class Diagnosis:
             tr_rows = np.nonzero(~ho)[0]
             ho_rows = np.nonzero(ho)[0]
             if tr_rows.size == 0 or ho_rows.size == 0:
-                raise GapInputError(f"{s}: no readings in the {'training' if tr_rows.size == 0 else 'held-out'} flights")
+                part = "training" if tr_rows.size == 0 else "held-out"
+                why = ""
+                if s == "imu":
+                    w = self.cfg.gap.imu_window
+                    why = (f"; an IMU reading integrates gap.imu_window = {w:g} s of a flight, so each {part} flight "
+                           f"(or half of a single flight) must be longer than that: use longer flights or a smaller "
+                           f"gap.imu_window")
+                raise GapInputError(f"{s}: no readings in the {part} flights{why}")
             self.rows_fit[s] = np.sort(rng.choice(tr_rows, min(cap, tr_rows.size), replace=False))
             self.rows_ho[s] = np.sort(rng.choice(ho_rows, min(4 * cap, ho_rows.size), replace=False))
             allr = np.arange(tab.n)

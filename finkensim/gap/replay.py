@@ -24,6 +24,7 @@ from numba import njit, prange
 from ..arena import Arena, walls_step_env
 from ..config import Config
 from ..flightlog import FlightLog
+from ..flightlog.messages import plural
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
@@ -144,7 +145,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         arena = Arena.from_config(cfg_f.arena, cfg_f.walls)
         t = np.asarray(log.t, dtype=float)
         if t.size < 5:
-            raise GapInputError(f"{name}: the log has {t.size} samples; expected at least 5 to replay it")
+            raise GapInputError(f"{name}: the log has {plural(t.size, 'sample')}; expected at least 5 to replay it")
         dts = np.diff(t)
         dt = float(np.median(dts))
         pos = np.ascontiguousarray(log.pose[:, :, :2], dtype=float)
@@ -156,7 +157,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         sy = cfg.gap.tracking_sigma_yaw if cfg.gap.tracking_sigma_yaw >= 0 else float(meta.get("tracking_sigma_yaw", 0.0) or 0.0)
         first = 10  # history for finite differences and smoothing windows
         if t.size <= first + 1:
-            raise GapInputError(f"{name}: the log has {t.size} samples; expected more than {first + 1}")
+            raise GapInputError(f"{name}: the log has {plural(t.size, 'sample')}; expected more than {first + 1}")
         stride = max(1, int(np.ceil((t.size - first) / cfg.gap.max_samples_per_flight)))
         samples = np.arange(first, t.size, stride, dtype=np.int64)
         f = Flight(name=name, index=i, log=log, t=t, dt=dt, pos=pos, yaw=yaw,

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_text_atomic
+from ..viz.png import save_png
 from .result import SPEC_KEYS, GapReport
 
 __all__ = ["SPEC_KEYS", "spec_report", "write_report", "markdown", "write_figures"]
@@ -25,10 +27,10 @@ def write_report(report: GapReport, out: str | Path, max_locations_md: int = 15)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"json": out / "report.json", "md": out / "report.md"}
-    paths["json"].write_text(report.to_json())
+    write_text_atomic(paths["json"], report.to_json())
     figs = write_figures(report, out)
     paths.update(figs)
-    paths["md"].write_text(markdown(report, {k: v.name for k, v in figs.items()}, max_locations_md))
+    write_text_atomic(paths["md"], markdown(report, {k: v.name for k, v in figs.items()}, max_locations_md))
     return paths
 
 
@@ -172,7 +174,7 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
         ax.set_title("How far the gap shrinks")
         fig.tight_layout()
         paths["waterfall"] = out / "waterfall.png"
-        fig.savefig(paths["waterfall"], dpi=110)
+        save_png(fig, paths["waterfall"], dpi=110, colors=None)
         plt.close(fig)
     corr = priv.correction
     if report.correction is not None and corr is not None and corr.partial_dependence.get(corr.sensor):
@@ -206,6 +208,6 @@ def _barh(path: Path, labels, values, colors, xlabel: str, title: str, width: fl
     ax.set_xlabel(xlabel)
     ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_png(fig, path, dpi=110, colors=None)
     plt.close(fig)
     return path

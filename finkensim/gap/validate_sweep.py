@@ -2,7 +2,7 @@
 generated-and-diagnosed flight set, resumable from a JSON-lines file, with a progress bar, run serially,
 on a local process pool or on Dask.
 
-Every finished trial is appended to ``trials.jsonl`` at once, so an interrupted validation keeps what it
+Every finished trial is added to ``trials.jsonl`` at once (the file is rewritten atomically), so an interrupted validation keeps what it
 did and a rerun with the same settings continues where it stopped.
 """
 from __future__ import annotations
@@ -13,6 +13,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable, Iterator
 
+from ..atomic import write_text_atomic
 from .validate import run_case
 
 __all__ = ["trial_key", "load_done", "run_trials"]
@@ -50,13 +51,25 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
             yield _one(job)
         return
     if executor == "process":
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+        import os
+
+        from ..sweep.executors import die_with_parent
+
+        # the workers end with this process, however it ends (SIGKILL included)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=die_with_parent, initargs=(os.getpid(),))
+        finished = False
         try:
             futs = [pool.submit(_one, j) for j in jobs]
             for fut in as_completed(futs):
                 yield fut.result()
+            finished = True
         finally:
-            pool.shutdown(wait=False, cancel_futures=True)
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=finished, cancel_futures=True)
+            if not finished:  # interrupted: stop the running trials now
+                for proc in procs:
+                    proc.terminate()
         return
     from ..sweep.executors import dask_client
     from distributed import as_completed as dask_completed
@@ -83,10 +96,9 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
     try:
         for row in _completed(todo, executor, workers, scheduler):
-            torn = log_path.exists() and log_path.stat().st_size > 0 and not log_path.read_bytes().endswith(b"\n")
-            with log_path.open("a") as fh:  # after a line torn by a kill, start a new one
-                fh.write(("\n" if torn else "") + json.dumps(row, default=float) + "\n")
             done[trial_key(row["case"], row["seed"], flights, duration, conventions)] = row
+            # rewritten whole after every trial (atomically, like every output): never a torn line
+            write_text_atomic(log_path, "".join(json.dumps(r, default=float) + "\n" for r in done.values()))
             if bar is not None:
                 bar.update(1)
     finally:

@@ -25,6 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..atomic import atomic_path, write_text_atomic
 from ..config import ConfigError
 
 __all__ = ["ARRAY_NAMES", "DEFAULT_MIXTURE_FILE", "Mixture", "MixtureError"]
@@ -227,9 +228,10 @@ class Mixture:
                 "units": {"distance": "m", "variance": "m^2"},
             }
             data.update({name: [float(v) for v in a] for name, a in arrays.items()})
-            path.write_text(json.dumps(data, indent=1) + "\n")
+            write_text_atomic(path, json.dumps(data, indent=1) + "\n")
         elif suffix == ".npz":
-            np.savez(path, **arrays)
+            with atomic_path(path) as tmp, open(tmp, "xb") as f:
+                np.savez(f, **arrays)
         else:
             raise MixtureError(f"mixture file {str(path)!r}: unknown format {suffix!r}; expected .json or .npz")
 

@@ -28,16 +28,18 @@ Output directory ``out``:
 
 A run that raises is recorded with status "error" and its exception; every other run proceeds. A
 worker that dies (the run never finished) gives an error row without a part, so ``resume`` retries it.
+Pool and local Dask workers end with the sweep process, however it ends (SIGKILL included:
+:func:`~finkensim.sweep.executors.die_with_parent`); ``finkensim sweep`` treats SIGTERM like Ctrl-C.
 """
 from __future__ import annotations
 
 from .checks import SweepError
 from .design import Sweep
-from .executors import EXECUTORS
+from .executors import EXECUTORS, terminate_as_interrupt
 from .keys import Run, format_params
 from .run import run_sweep
 from .store import load_results
 from .summary import plot_summary, summarize
 
 __all__ = ["SweepError", "Sweep", "Run", "EXECUTORS", "run_sweep", "load_results", "summarize", "plot_summary",
-           "format_params"]
+           "format_params", "terminate_as_interrupt"]

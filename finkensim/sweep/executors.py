@@ -6,6 +6,7 @@ order of completion. A run that raises is a result with status "error"; a worker
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from typing import Any, Iterator, Mapping
@@ -42,9 +43,47 @@ def _limit_threads() -> None:
         _THREADS_LIMITED = True
 
 
-def _worker_init() -> None:
-    """Initializer of a pool worker process."""
+PARENT_POLL_S = 0.5  # how often a worker checks that the sweep process is still there
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Make this worker process end when the process ``parent_pid`` (the sweep) ends, by any signal.
+
+    On Linux the kernel sends SIGKILL to this process when its parent dies (``prctl(PR_SET_PDEATHSIG)``,
+    effective at once, even inside a compiled kernel); everywhere, a daemon thread checks every
+    :data:`PARENT_POLL_S` s that the parent is still ``parent_pid`` and otherwise ends the process.
+    With the workers gone, the multiprocessing resource tracker (kept alive by their pipe ends) ends too.
+    """
+    import os
+    import sys
+    import threading
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+            import signal
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            PR_SET_PDEATHSIG = 1
+            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no libc prctl: the thread below suffices
+            pass
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="finkensim-parent-watch", daemon=True).start()
+
+
+def _worker_init(parent_pid: int | None = None) -> None:
+    """Initializer of a pool worker process: one numba thread, and end with the sweep process."""
     _limit_threads()
+    if parent_pid is not None:
+        die_with_parent(parent_pid)
 
 
 def execute(task: Mapping[str, Any]) -> dict[str, Any]:
@@ -80,6 +119,30 @@ def execute(task: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """Within the block, SIGTERM raises KeyboardInterrupt in the main thread (as Ctrl-C does), so a sweep
+    ends the same way for both: running runs stopped, finished parts kept, ``resume`` continues. Yields a
+    list that holds the signal number once SIGTERM arrived. Outside the main thread it changes nothing."""
+    import signal
+    import threading
+
+    caught: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield caught
+        return
+
+    def on_term(signum, frame):
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield caught
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def _lost(task, exc: BaseException) -> dict[str, Any]:
     """Row of a run whose worker failed (no result came back); it gets no part, so resume retries it."""
     row = {"run_id": task["run_id"], **{m: math.nan for m in task["metrics"]}, "status": "error",
@@ -100,9 +163,11 @@ def run_process(tasks: list[dict], workers: int) -> Iterator[dict]:
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+    import os
+
     # spawn: numba's OpenMP threads make fork unsafe; the workers import finkensim afresh
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_worker_init)
+                               initializer=_worker_init, initargs=(os.getpid(),))
     pending: dict = {}
     todo = iter(tasks)
     try:
@@ -122,7 +187,15 @@ def run_process(tasks: list[dict], workers: int) -> Iterator[dict]:
                 yield _lost(task, exc) if exc is not None else fut.result()
             fill()
     finally:
-        pool.shutdown(wait=not pending, cancel_futures=True)
+        if pending:  # interrupted (Ctrl-C, SIGTERM, an error): stop the running runs now, not when they end
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(5.0)
+        else:
+            pool.shutdown(wait=True)
 
 
 def dask_client(workers: int, scheduler: str | None):
@@ -140,9 +213,13 @@ def dask_client(workers: int, scheduler: str | None):
             return Client(scheduler, timeout="10s"), None
         except (OSError, TimeoutError, ValueError) as exc:
             raise SweepError(f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
+    import os
+
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                            silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    client = Client(cluster)
+    client.run(die_with_parent, os.getpid())  # local workers are children of this process: end with it
+    return client, cluster
 
 
 def run_dask(tasks: list[dict], workers: int, client) -> Iterator[dict]:

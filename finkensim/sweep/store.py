@@ -9,12 +9,12 @@ the sweep.json fingerprint check, and reading the results table back.
 from __future__ import annotations
 
 import json
-import os
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from .. import __version__
+from ..atomic import write_atomic
 from .checks import SweepError
 from .summary import plot_summary, summarize
 from .tables import column_value
@@ -26,17 +26,6 @@ if TYPE_CHECKING:
 def _part_path(parts: Path, run_id: int) -> Path:
     """The part file of run ``run_id`` in the folder ``parts``."""
     return parts / f"run-{run_id:05d}.parquet"
-
-
-def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path`` (never half a file)."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def write_part(parts: Path, row: Mapping[str, Any], schema) -> None:

@@ -58,7 +58,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..config import SECTIONS, Config, ConfigError, check_key
+from ..config import SECTIONS, Config, ConfigError, check_key, strip_bom
 from ..metrics import METRICS
 from ..scenario import load_scenario
 from .checks import Parser, SweepError, field_kind, is_duration, is_number, suggest
@@ -102,7 +102,7 @@ def read_sweep_toml(source: str | Path) -> tuple[dict[str, Any], Path, str, str]
     else:
         text, name, base_dir = str(source), "sweep", Path.cwd()
     try:
-        data = tomllib.loads(text)
+        data = tomllib.loads(strip_bom(text))
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(f"{name}: invalid TOML: {exc}") from None
     return data, base_dir, name, text

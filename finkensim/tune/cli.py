@@ -60,6 +60,8 @@ def run(args) -> int:
     if args.trials is not None and args.trials < 1:
         return _error(prog, f"--trials {args.trials}: expected a positive number of trials")
     out = Path(args.out)
+    if not str(args.out).strip():
+        return _error(prog, "--out '': expected a directory name")
     if out.exists() and not out.is_dir():
         return _error(prog, f"--out {args.out!r} is a file: expected a directory")
     try:

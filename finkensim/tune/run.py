@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import write_atomic, write_text_atomic
 from ..config import ConfigError
 from .evaluate import compare, evaluate
 from .studyfile import StudySpec, parse_study
@@ -184,7 +185,7 @@ def _figures(study, spec: StudySpec, out: Path) -> list[Path]:
                 continue
             fig = (ax.flat[0] if isinstance(ax, np.ndarray) else ax).figure
             fig.set_size_inches(7, 4.5)
-            fig.savefig(fdir / name, dpi=100, bbox_inches="tight")
+            write_atomic(fdir / name, lambda tmp: fig.savefig(tmp, dpi=100, bbox_inches="tight"))
             plt.close(fig)
             written.append(fdir / name)
     return written
@@ -218,7 +219,7 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
         raise ConfigError(f"out = {str(out)!r}: exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     if spec.text is not None:
-        (out / "study.toml").write_text(spec.text)
+        write_text_atomic(out / "study.toml", spec.text)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     url = storage_url(spec, out, storage)
     directions = [d for _, d in spec.objectives]
@@ -233,10 +234,11 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
     if todo:
         st.optimize(_objective(spec), n_trials=todo, show_progress_bar=progress, catch=(ConfigError,),
                     callbacks=[MaxTrialsCallback(spec.n_trials, states=(TrialState.COMPLETE,))])
-    st.trials_dataframe().to_csv(out / "trials.csv", index=False)
+    trials = st.trials_dataframe()
+    write_atomic(out / "trials.csv", lambda tmp: trials.to_csv(tmp, index=False))
     best_trial = select_best(st, spec)
     best = {p.key: best_trial.params[p.key] for p in spec.params if p.key in best_trial.params}
-    (out / "best.json").write_text(json.dumps(
+    write_text_atomic(out / "best.json", json.dumps(
         {"trial": best_trial.number, "params": best, "values": dict(zip([m for m, _ in spec.objectives],
                                                                         best_trial.values)),
          "defaults": spec.defaults(), "n_trials_finished": len(st.get_trials(states=(TrialState.COMPLETE,)))},
@@ -246,7 +248,7 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
         import pandas as pd
 
         comparison = pd.DataFrame(compare(spec, best))
-        comparison.to_csv(out / "heldout.csv", index=False)
+        write_atomic(out / "heldout.csv", lambda tmp: comparison.to_csv(tmp, index=False))
     figs = _figures(st, spec, out) if figures else []
     return StudyResult(study=st, spec=spec, best=best, best_trial=best_trial.number, comparison=comparison, out=out,
                        figures=figs)

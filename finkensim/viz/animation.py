@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import trajectory_arrays
+from ..atomic import atomic_path
 from .arena import angle_norm, arena_title, draw_arena, update_arena
 from .inputs import resolve_arena
 
@@ -121,7 +122,7 @@ def animate(arena, traj, env: int = 0, path: str | Path | None = None, *, fps: i
         return FuncAnimation(fig, update, frames=frames, interval=1000.0 / fps, blit=False)
     path = Path(path)
     writer = _gif_writer_class()(fps=fps)
-    with writer.saving(fig, str(path), dpi):
+    with atomic_path(path) as tmp, writer.saving(fig, str(tmp), dpi):  # the GIF appears whole or not at all
         for k in frames:
             update(k)
             writer.grab_frame()

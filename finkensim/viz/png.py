@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..atomic import atomic_path
+
 __all__ = ["save_png"]
 
 
@@ -19,7 +21,8 @@ def save_png(fig, path: str | Path, dpi: int = 100, colors: int | None = 256) ->
 
     path = Path(path)
     if colors is None:
-        fig.savefig(path, dpi=dpi)
+        with atomic_path(path) as tmp:  # whole or not at all
+            fig.savefig(tmp, dpi=dpi, format="png")
         return path
     buf = io.BytesIO()
     fig.savefig(buf, dpi=dpi, format="png")
@@ -27,5 +30,6 @@ def save_png(fig, path: str | Path, dpi: int = 100, colors: int | None = 256) ->
     with Image.open(buf) as im:
         pal = im.convert("RGB").quantize(colors=int(colors), method=Image.Quantize.MEDIANCUT,
                                          dither=Image.Dither.NONE)
-    pal.save(path, format="PNG", optimize=True)
+    with atomic_path(path) as tmp:
+        pal.save(tmp, format="PNG", optimize=True)
     return path

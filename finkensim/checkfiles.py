@@ -1,0 +1,148 @@
+"""``finkensim check FILE ...``: validate flight logs, scenario and sweep files without running them.
+
+Each file is read exactly as the command that uses it reads it (flight logs with
+:func:`finkensim.flightlog.load` or, for ``.csv`` tracking data, :func:`~finkensim.flightlog.from_csv`;
+scenarios with :func:`~finkensim.default_scenario.load_scenario`; sweeps with
+:meth:`~finkensim.sweep.Sweep.from_toml`, which builds and checks every configuration of the design),
+plus what a run would check next: room for the copters and the memory a flight would hold
+(:mod:`finkensim.budget`). A good file gives one summary line on stdout::
+
+    flight.npz: flight log, T = 1201 samples over 60 s (dt 0.05 s), N = 6 copters, sensors: ultrasonic (S = 4), ranging, imu; arena 3 x 4 m
+
+a bad one one error line on stderr naming the file, the key or array and what was expected.
+:func:`check_files` returns 0 if every file is good, else 2 (the exit code of a usage error).
+
+Which kind a file is: ``.npz`` and ``.csv`` are flight logs; a TOML file with a sweep's top-level
+keys (``[grid]``, ``[random]``, ``[variants]``, ``[base]``, ``replicates``, ``metrics``) is a sweep,
+any other TOML file a scenario; a file with another suffix is a flight log if it is a zip (``.npz``)
+archive, else read as TOML.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Callable, Sequence
+
+from .budget import check_memory, flight_advice, flight_arrays, format_bytes
+from .config import ConfigError, strip_bom
+from .flightlog import FlightLog, FlightLogError, from_csv, load
+
+__all__ = ["SWEEP_KEYS", "file_kind", "check_file", "check_files", "log_summary"]
+
+SWEEP_KEYS = ("grid", "random", "variants", "base", "replicates", "metrics")
+"""Top-level TOML keys that only a sweep file has (a scenario's top-level keys are config sections)."""
+
+EXIT_OK, EXIT_BAD = 0, 2
+
+
+def _toml_tables(path: Path) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python < 3.11
+        import tomli as tomllib
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text (TOML) file, and not a flight log (.npz, .csv)") from None
+    try:
+        return tomllib.loads(strip_bom(text))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"invalid TOML in {path}: {exc}") from None
+
+
+def file_kind(path: Path) -> str:
+    """``"log"``, ``"csv"``, ``"sweep"`` or ``"scenario"`` for an existing file (see the module docstring)."""
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return "log"
+    if suffix == ".csv":
+        return "csv"
+    if suffix != ".toml":
+        with path.open("rb") as fh:
+            if fh.read(4) == b"PK\x03\x04":
+                return "log"
+    tables = _toml_tables(path)
+    return "sweep" if any(k in tables for k in SWEEP_KEYS) else "scenario"
+
+
+def log_summary(log: FlightLog) -> str:
+    """``flight log, T = ... samples over ... s (dt ...), N = ... copters, sensors: ...; arena W x L m``."""
+    T, N = int(log.t.shape[0]), int(log.pose.shape[1])
+    span = float(log.t[-1] - log.t[0])
+    dt = f" (dt {span / (T - 1):.3g} s)" if T > 1 else ""
+    sensors = []
+    if log.ultrasonic is not None:
+        sensors.append(f"ultrasonic (S = {log.ultrasonic.shape[2]})")
+    if log.ranging is not None:
+        sensors.append("ranging")
+    if log.imu_acc is not None:
+        sensors.append("imu")
+    return (f"flight log, T = {T} sample{'s' if T != 1 else ''} over {span:g} s{dt}, N = {N} "
+            f"copter{'s' if N != 1 else ''}, sensors: {', '.join(sensors) or 'none'}; "
+            f"arena {float(log.arena[0]):g} x {float(log.arena[1]):g} m")
+
+
+def _scenario_summary(path: Path) -> str:
+    from .default_scenario import load_scenario
+
+    cfg = load_scenario(path)
+    sim = cfg.simulation
+    T = int(round(sim.duration / sim.dt)) + 1
+    total = check_memory(flight_arrays(cfg), f"a flight of {sim.duration:g} s of {cfg.copters.n} copters",
+                         flight_advice(cfg))
+    sensors = [name for name in ("sonar", "ranging", "imu") if getattr(cfg, name).enabled]
+    return (f"scenario, T = {T} samples over {sim.duration:g} s (dt {sim.dt:g} s), N = {cfg.copters.n} copters "
+            f"({cfg.behaviour.kind}), sensors: {', '.join(sensors) or 'none'}; arena {cfg.arena.width:g} x "
+            f"{cfg.arena.length:g} m; a flight holds about {format_bytes(total)}")
+
+
+def _sweep_summary(path: Path) -> str:
+    from .sweep import Sweep
+
+    sweep = Sweep.from_toml(path)
+    cfg = sweep.base
+    return (f"sweep, {sweep.n_runs} runs ({sweep.n_combinations} combinations x {sweep.replicates} replicates) "
+            f"of {sweep.duration:g} s, {sweep.design} over {', '.join(sweep.parameters) or 'nothing'}; base: "
+            f"N = {cfg.copters.n} copters, arena {cfg.arena.width:g} x {cfg.arena.length:g} m")
+
+
+def check_file(path: str | Path, arena: Sequence[float] | None = None) -> str:
+    """The summary of a good file (without its name); raises ConfigError / FlightLogError for a bad one.
+
+    ``arena`` (width, length) m is needed for a ``.csv`` tracking file (default 3 x 4 m, the default arena).
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError(f"{p}: file does not exist")
+    if not p.is_file():
+        raise ConfigError(f"{p}: not a file")
+    try:
+        kind = file_kind(p)
+    except OSError as exc:
+        raise ConfigError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
+    if kind == "log":
+        return log_summary(load(p))
+    if kind == "csv":
+        return log_summary(from_csv(p, tuple(arena) if arena is not None else (3.0, 4.0)))
+    if kind == "sweep":
+        return _sweep_summary(p)
+    return _scenario_summary(p)
+
+
+def check_files(paths: Sequence[str], prog: str = "finkensim check", arena: Sequence[float] | None = None,
+                out: Callable[[str], None] | None = None) -> int:
+    """Check every file of ``paths``: a summary line per good file (``out``, default stdout), an error line
+    ``<prog>: error: <message>`` per bad one on stderr. Returns 0 if all are good, else 2."""
+    say = out or print
+    status = EXIT_OK
+    for path in paths:
+        try:
+            summary = check_file(path, arena)
+        except (ConfigError, FlightLogError) as exc:
+            msg = " ".join(str(exc).split())
+            named = msg if str(path) in msg else f"{path}: {msg}"
+            print(f"{prog}: error: {named}", file=sys.stderr)
+            status = EXIT_BAD
+            continue
+        say(f"{path}: {summary}")
+    return status
