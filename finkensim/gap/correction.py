@@ -53,16 +53,6 @@ def _design(tab, rows, median):
     return X, names + ["model_median"]
 
 
-def _censored_draws(diag, sensor, p, rows):
-    tab = diag.tables[sensor]
-    D, _ = tab.draws(diag.flights, p, rows, diag.seed, diag.M)
-    y = tab.y[rows]
-    cens = diag.censoring.get(sensor)
-    if cens is not None:
-        D, y = cens.draws(D), cens.observed(y)
-    return D, y, cens
-
-
 def _fit_sensor(diag, sensor, p, located):
     from sklearn.ensemble import HistGradientBoostingRegressor
     from sklearn.inspection import partial_dependence
@@ -72,7 +62,7 @@ def _fit_sensor(diag, sensor, p, located):
     rows_fit = diag.rows_fit[sensor]
     if rows_fit.size > MAX_TRAIN_ROWS:
         rows_fit = np.sort(rng.choice(rows_fit, MAX_TRAIN_ROWS, replace=False))
-    D, y, _ = _censored_draws(diag, sensor, p, rows_fit)
+    D, y, _ = diag.censored_draws(sensor, p, rows_fit)
     med = np.median(D, axis=1)
     ok = np.isfinite(y) & np.isfinite(med)
     if ok.sum() < 200:
@@ -84,7 +74,8 @@ def _fit_sensor(diag, sensor, p, located):
                                             min_samples_leaf=40, early_stopping=False, random_state=0).fit(X, r)
               for q in levels]
     rows_ho = diag.rows_ho[sensor]
-    Dh, yh, cens = _censored_draws(diag, sensor, p, rows_ho)
+    Dh, yh, _ = diag.censored_draws(sensor, p, rows_ho)
+    cens = diag.censoring.get(sensor)
     medh = np.median(Dh, axis=1)
     Xh, _ = _design(tab, rows_ho, medh)
     Q = np.sort(np.column_stack([m.predict(Xh) for m in models]), axis=1) + medh[:, None]

@@ -180,13 +180,19 @@ class Diagnosis:
         return tab.flight[rows] * 10_000_000 + np.floor(tab.seconds[rows] / self.block_seconds).astype(np.int64)
 
     # ------------------------------------------------------------------ scoring
-    def _terms(self, sensor, p: ModelParams, rows):
+    def censored_draws(self, sensor, p: ModelParams, rows):
+        """(draws (n, M), readings (n,), period (n,)) of ``rows`` under p, both sides through the sensor's
+        censoring (the chaining function of the threshold-weighted CRPS) when it has one."""
         tab = self.tables[sensor]
         D, period = tab.draws(self.flights, p, rows, self.seed, self.M)
         y = tab.y[rows]
         cens = self.censoring.get(sensor)
-        if cens is not None:  # threshold-weighted CRPS: both sides through the same chaining function
+        if cens is not None:
             D, y = cens.draws(D), cens.observed(y)
+        return D, y, period
+
+    def _terms(self, sensor, p: ModelParams, rows):
+        D, y, period = self.censored_draws(sensor, p, rows)
         return ensemble_terms_grouped(np.ascontiguousarray(D), np.ascontiguousarray(y), period)
 
     def score_rows(self, sensor, p: ModelParams, rows):

@@ -78,13 +78,8 @@ class Flight:
     def poses_with_bulge(self, amplitude: float, reach: float) -> "ReplayPoses":
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)²)`` m,
         d its distance to the nearest copter body (the ``wall_bulge`` effect; amplitude m, reach m > 0)."""
-        key = (round(float(amplitude), 9), round(float(reach), 9))
-        bulge = self.extras.get(("bulge", key))
-        if bulge is None:
-            bulge = bulge_displacement(self.plate_distance, amplitude, reach)
-            self.extras = {k: v for k, v in self.extras.items() if not (isinstance(k, tuple) and k[0] == "bulge")}
-            self.extras[("bulge", key)] = bulge
-        return ReplayPoses(self.pos, self.yaw, self.theta_unit, bulge)
+        return ReplayPoses(self.pos, self.yaw, self.theta_unit,
+                           bulge_displacement(self.plate_distance, amplitude, reach))
 
     @property
     def walls(self) -> WallGeometry:

@@ -90,10 +90,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         # the largest share of a gap sensor's configured-model gap this step removes (not of what is left: a
         # small misfit of the first effect must not let a catch-all in as a second one; per sensor: an effect on
         # a sensor with a small gap is not diluted by a large gap elsewhere)
-        gain = max((float(np.nanmean(cur_gaps[s]) - np.nanmean(best.rows_gap[s])) / per_sensor[s]["gap"]
-                    for s in gap_sensors if per_sensor[s]["gap"] > 0), default=0.0)
-        score_gain = max((float(np.nanmean(cur_scores[s]) - np.nanmean(best.rows_score[s])) / per_sensor[s]["gap"]
-                          for s in gap_sensors if per_sensor[s]["gap"] > 0), default=0.0)
+        gain = _share(cur_gaps, best.rows_gap, gap_sensors, per_sensor)
+        score_gain = _share(cur_scores, best.rows_score, gap_sensors, per_sensor)
         diag.say(f"  candidate {best.name}: improvement p = {imp_p:.3g}, gap gain {gain:.3f}, score gain {score_gain:.3f}")
         if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and max(gain, score_gain) >= cfg.accept_gain):
             break
@@ -115,17 +113,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             evaluated.append(cur_scores)
             steps.append(("joint refit", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in added}))
 
-    # how much each model explains: calibration and proper score, against everything the diagnosis built
+    # how much each model explains: calibration and proper score, against what the catalogue built
     shrink_sensors = gap_sensors or list(base_scores)
-    correction = None
-    if significant and with_correction:
-        located = {}
-        for loc in locs:
-            if loc["_significant"] and loc["feature"] not in located.setdefault(loc["sensor"], []):
-                located[loc["sensor"]].append(loc["feature"])
-        correction = fit_correction(diag, current, sorted(gap_sensors, key=lambda s: -per_sensor[s]["gap"]), located)
-    # effects are measured against the catalogue's best; the correction against everything (itself included):
-    # a flexible regression is sharper than any physical model with approximate parts, which is not a defect
     meter = ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated)
     gap_before = meter.c0
 
@@ -149,8 +138,16 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
     elif significant:
         verdict.update(effect=names_added[0], effects=names_added, ambiguous=ambiguous, shrink_heldout=total_shrink)
-    correction_block = None
-    if correction is not None and verdict["unexplained"]:
+    correction, correction_block = None, None
+    if verdict["unexplained"] and with_correction:
+        located = {}
+        for loc in locs:
+            if loc["_significant"] and loc["feature"] not in located.setdefault(loc["sensor"], []):
+                located[loc["sensor"]].append(loc["feature"])
+        correction = fit_correction(diag, current, sorted(gap_sensors, key=lambda s: -per_sensor[s]["gap"]), located)
+    if correction is not None:
+        # measured against everything, itself included: a flexible regression is sharper than any physical
+        # model with approximate parts, which is not a defect of the catalogue's effects
         correction_block = {"sensor": correction.sensor, "features": correction.features,
                             "shrink_heldout": ShrinkMeter(base_scores, gap_vals, shrink_sensors,
                                                           evaluated + [correction.rows_score]).shrink(
@@ -175,22 +172,27 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                      correction=correction_block, details=details)
 
 
-def _pick(pool, cur_score, tol):
-    """The candidate to add: the best held-out score, unless it is a catch-all and a structured effect's
-    improvement comes within the tie tolerance of it (catch-alls absorb part of any gap)."""
-    best = pool[0]
-    if fx.REGISTRY[best.name].catch_all:
-        imp = cur_score - best.score_heldout
-        for r in pool[1:]:
-            if not fx.REGISTRY[r.name].catch_all and imp > 0 and (cur_score - r.score_heldout) >= (1 - tol) * imp:
-                return r
-    return best
+def _share(cur: dict, new: dict, sensors, per_sensor) -> float:
+    """The largest share of a gap sensor's configured-model gap that going from ``cur`` to ``new`` (sensor →
+    per-row values) removes."""
+    return max((float(np.nanmean(cur[s]) - np.nanmean(new[s])) / per_sensor[s]["gap"]
+                for s in sensors if per_sensor[s]["gap"] > 0), default=0.0)
 
 
 def _near_ties(pool, chosen, cur_score, tol):
     """Other candidates whose held-out improvement is within the tie tolerance of the chosen one's."""
     imp = cur_score - chosen.score_heldout
     return [r.name for r in pool if r.name != chosen.name and imp > 0 and (cur_score - r.score_heldout) >= (1 - tol) * imp]
+
+
+def _pick(pool, cur_score, tol):
+    """The candidate to add: the best held-out score, unless it is a catch-all and a structured effect's
+    improvement comes within the tie tolerance of it (catch-alls absorb part of any gap)."""
+    best = pool[0]
+    if fx.REGISTRY[best.name].catch_all:
+        ties = set(_near_ties(pool, best, cur_score, tol))
+        return next((r for r in pool if r.name in ties and not fx.REGISTRY[r.name].catch_all), best)
+    return best
 
 
 def _joint_refit(diag, added):
