@@ -159,3 +159,38 @@ def test_two_processes_share_one_study(tmp_path):
     states = [t.state.name for t in s.trials]
     assert states.count("COMPLETE") >= 8 and "FAIL" not in states
     assert sum(t.user_attrs.get("role") == "defaults" for t in s.trials) == 1
+
+
+
+def _race_to_pop(url, trial_ids, barrier, results):
+    from optuna.trial import TrialState
+
+    from finkensim.tune.storage import open_storage
+
+    storage = open_storage(url)
+    storage.get_all_studies()  # connect before the start line
+    barrier.wait()
+    results.put([tid for tid in trial_ids if storage.set_trial_state_values(tid, TrialState.RUNNING)])
+
+
+def test_waiting_trials_are_handed_out_once_across_processes(tmp_path):
+    """Four processes race to switch the same 40 WAITING trials to RUNNING on one SQLite file: each trial goes to
+    exactly one process. (Optuna's plain RDBStorage hands out 1-12 trials twice in this race on SQLite, which ignores
+    SELECT FOR UPDATE: that is how the defaults trial of `finkensim tune` ran twice in two processes.)"""
+    import multiprocessing as mp
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    url = f"sqlite:///{tmp_path / 'race.db'}"
+    study = optuna.create_study(storage=url, study_name="race")
+    for i in range(40):
+        study.enqueue_trial({"a": i})
+    ids = [t._trial_id for t in study.get_trials(deepcopy=False)]
+    ctx = mp.get_context("spawn")
+    barrier, results = ctx.Barrier(4), ctx.Queue()
+    procs = [ctx.Process(target=_race_to_pop, args=(url, ids, barrier, results)) for _ in range(4)]
+    for p in procs:
+        p.start()
+    won = [tid for _ in procs for tid in results.get(timeout=300)]
+    for p in procs:
+        p.join(timeout=60)
+    assert sorted(won) == sorted(ids)

@@ -29,6 +29,7 @@ import numpy as np
 from ..atomic import write_atomic, write_text_atomic
 from ..config import ConfigError
 from .evaluate import compare, evaluate
+from .storage import open_storage
 from .studyfile import StudySpec, parse_study
 
 __all__ = ["run_study", "StudyResult", "storage_url", "select_best"]
@@ -112,7 +113,7 @@ def _open_study(url: str, spec: StudySpec, directions: list[str], attempts: int 
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-                rdb = optuna.storages.RDBStorage(url, heartbeat_interval=HEARTBEAT_S, grace_period=2 * HEARTBEAT_S)
+                rdb = open_storage(url, heartbeat_interval=HEARTBEAT_S, grace_period=2 * HEARTBEAT_S)
             try:
                 return optuna.create_study(study_name=spec.study_name, storage=rdb, sampler=_sampler(spec),
                                            directions=directions), True
