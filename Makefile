@@ -32,15 +32,15 @@ notebooks: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run $(if $(QUICK),--quick,)
 
-# Peer simulators in their own venv (torch is large and must not enter .venv): VMAS on torch CPU runs
-# the comparison workload (benchmarks/peers/vmas_scenario.py) and writes out/bench/peers.json, which
-# `make bench` merges into its table when present.
+# Peer simulators in their own venv (torch is large and must not enter .venv): VMAS on torch CPU. Once installed,
+# `make bench` runs it on the comparison workload (benchmarks/peers/vmas_scenario.py) in the same run, each
+# configuration right after finkensim's.
 PEERS_VENV := .venv-peers
 bench-peers:
 	test -x $(PEERS_VENV)/bin/python || $(PYTHON) -m venv $(PEERS_VENV)
 	$(PEERS_VENV)/bin/python -m pip install --quiet "numpy>=1.26" "torch==2.13.0"
 	$(PEERS_VENV)/bin/python -m pip install --quiet "vmas==1.5.2" || $(PEERS_VENV)/bin/python -m pip install --quiet vmas
-	$(PEERS_VENV)/bin/python -m benchmarks.peers.run_vmas $(if $(QUICK),--quick,) --out out/bench/peers.json
+	$(PEERS_VENV)/bin/python -c "import torch, vmas; print('VMAS', vmas.__version__, 'on torch', torch.__version__, 'ready for make bench')"
 
 clean:
 	rm -rf $(VENV) .numba_cache out .pytest_cache .hypothesis

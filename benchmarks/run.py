@@ -5,8 +5,9 @@ is measured in this run (ratios are only meaningful within one run: the machine 
 
 (a) **comparison workload** (``benchmarks.workloads``: 4 walls, 4 sonar rays per copter hitting
     walls and copters, pairwise distances, kinematic update, no noise) — finkensim's compiled rollout
-    vs the plain vectorised NumPy version, and VMAS when ``out/bench/peers.json`` exists
-    (``make bench-peers``; that file comes from an earlier run, and its figures are marked so);
+    vs the plain vectorised NumPy version, and VMAS in the same run whenever ``make bench-peers`` has
+    installed it in ``.venv-peers`` (each configuration right after finkensim's and NumPy's, in a subprocess of
+    that interpreter; ``--peers-python`` names another one, ``--no-peers`` skips it);
 (b) **full FINken workload** — ``finkensim.swarm`` when importable, else "n/a (finkensim.swarm
     missing)" plus the stand-in (``World.rollout`` + batched sensors);
 for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments;
@@ -56,6 +57,7 @@ FULL_B = (1, 64, 1024)
 QUICK_N = (4, 10)
 QUICK_B = (1, 64)
 MAX_STEPS = 100_000
+REPO = Path(__file__).resolve().parent.parent
 
 
 # ---------------------------------------------------------------------------------------------
@@ -125,7 +127,21 @@ def peak_bytes(build, steps: int = 1) -> int:
 # workloads
 
 
-def bench_compare(ns, bs, seconds, repeats, log, threads=(1, 2)) -> list[dict]:
+def peer_python(path: str | None) -> tuple[str | None, str]:
+    """(interpreter, why): the Python that has torch and vmas (``path``, else ``.venv-peers/bin/python`` of the
+    repository), or (None, the reason it cannot be used)."""
+    py = Path(path) if path else REPO / ".venv-peers" / "bin" / "python"
+    if not py.exists():
+        return None, f"{py} not found (run `make bench-peers` to install VMAS)"
+    p = subprocess.run([str(py), "-c", "import torch, vmas"], capture_output=True, text=True, cwd=REPO)
+    if p.returncode != 0:
+        last = p.stderr.strip().splitlines()[-1] if p.stderr.strip() else f"exit {p.returncode}"
+        return None, f"{py} cannot import torch and vmas: {last}"
+    return str(py), ""
+
+
+def bench_compare(ns, bs, seconds, repeats, log, threads=(1, 2), peers_py: str | None = None) -> list[dict]:
+    from .peers.run_vmas import measure_config
     from .workloads import CompareWorkload
 
     rows = []
@@ -146,9 +162,17 @@ def bench_compare(ns, bs, seconds, repeats, log, threads=(1, 2)) -> list[dict]:
                 row[impl] = dict(env_steps_per_s=b / s, copter_steps_per_s=n * b / s, **extra,
                                  peak_bytes_per_env=peak_bytes(lambda impl=impl: CompareWorkload(n, b, impl)) / b)
             row["ratio_numpy"] = row["finkensim"]["env_steps_per_s"] / row["numpy"]["env_steps_per_s"]
+            if peers_py:
+                v = measure_config(peers_py, n, b, max(1.0, 4 * seconds), threads, cwd=str(REPO))
+                if "error" in v:
+                    row["vmas_error"] = v["error"]
+                else:
+                    row["vmas"] = v
+                    row["ratio_vmas"] = row["finkensim"]["env_steps_per_s"] / v["env_steps_per_s"]
             rows.append(row)
             log(f"(a) N={n:4d} B={b:5d}  finkensim {row['finkensim']['env_steps_per_s']:12.0f}  "
-                f"numpy {row['numpy']['env_steps_per_s']:10.0f} env-steps/s  (x{row['ratio_numpy']:.1f})")
+                f"numpy {row['numpy']['env_steps_per_s']:10.0f} env-steps/s  (x{row['ratio_numpy']:.1f})"
+                + (f"  vmas {row['vmas']['env_steps_per_s']:10.0f} (x{row['ratio_vmas']:.0f})" if "vmas" in row else ""))
     return rows
 
 
@@ -203,17 +227,6 @@ def compile_probes(workloads, log) -> list[dict]:
     return out
 
 
-def load_peers(path: Path) -> dict | None:
-    if not path.exists():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    data["by_config"] = {(r["N"], r["B"]): r for r in data.get("results", []) if "error" not in r}
-    return data
-
-
 # ---------------------------------------------------------------------------------------------
 # report
 
@@ -242,6 +255,46 @@ def _ratio(x) -> str:
     return "—" if x is None else (f"{x:,.0f}×" if x >= 100 else f"{x:.1f}×")
 
 
+def _find(rows, **key):
+    for r in rows or ():
+        if all(r.get(k) == v for k, v in key.items()) and "error" not in r and "skipped" not in r:
+            return r
+    return None
+
+
+def targets(res: dict) -> list[dict]:
+    """The project's performance targets checked against this run's figures: rows {target, measured, met}, with
+    measured None (and met None) when this run did not measure it (``--quick``, skipped section, VMAS missing)."""
+    rows = []
+
+    def add(target, value, fmt, ok):
+        rows.append(dict(target=target, measured=None if value is None else fmt.format(value),
+                         met=None if value is None else bool(ok(value))))
+
+    cmp10 = {b: _find(res.get("compare"), N=10, B=b) for b in (1, 1024)}
+    full = _find((res.get("finken") or {}).get("rows"), N=10, B=1024)
+    ratio = (cmp10[1024]["finkensim"]["env_steps_per_s"] / full["env_steps_per_s"]
+             if full and cmp10[1024] and not (res.get("finken") or {}).get("status") else None)
+    add("full FINken workload / comparison workload ≤ 3× (N = 10, B = 1024)", ratio, "{:.1f}×", lambda x: x <= 3)
+    for b, need in ((1024, 100), (1, 5000)):
+        r = cmp10[b]
+        add(f"comparison workload ≥ {need:,}× VMAS (N = 10, B = {b})", r.get("ratio_vmas") if r else None,
+            "{:,.0f}×", lambda x, need=need: x >= need)
+    r = cmp10[1024]
+    add("comparison workload ≥ 10× plain NumPy (N = 10, B = 1024)", r["ratio_numpy"] if r else None, "{:.1f}×",
+        lambda x: x >= 10)
+    comp = {c["workload"]: c for c in res.get("compile") or () if "error" not in c["cold"] and "error" not in c["warm"]}
+    fk = comp.get("finken")
+    add("cold JIT, full workload first call ≤ 5 s", fk["cold"]["first_call_s"] if fk else None, "{:.1f} s",
+        lambda x: x <= 5)
+    add("warm (cached) first call, full workload ≤ 1 s", fk["warm"]["first_call_s"] if fk else None, "{:.2f} s",
+        lambda x: x <= 1)
+    env = _find(res.get("envs"), env="gymnasium vector", B=1024)
+    add("Gymnasium vector env ≥ 100 k env-steps/s (N = 10, B = 1024, sensors on)",
+        env["env_steps_per_s"] if env else None, "{:,.0f}", lambda x: x >= 1e5)
+    return rows
+
+
 def report(res: dict) -> str:
     L = []
     meta = res["meta"]
@@ -251,17 +304,16 @@ def report(res: dict) -> str:
              f"({meta['numba_threads']} threads) · {meta['cpus']} CPUs · load average {meta['load_start']} → "
              f"{meta['load_end']}{' · QUICK' if meta['quick'] else ''}")
     L.append("")
-    peers = res.get("peers")
+    peers = res.get("peers")  # {"python": interpreter or None, "why": reason when None}
     L.append("## (a) Comparison workload: 4 walls, 4 sonar rays/copter (walls + copters), pairwise distances, "
              "kinematic update, no noise")
     L.append("")
-    if peers:
-        pm = peers.get("meta", {})
-        L.append(f"VMAS {pm.get('vmas', '?')} on torch {pm.get('torch', '?')} ({pm.get('threads', '?')} threads), "
-                 f"from `{res['peers_path']}` written {pm.get('time', '?')} by `make bench-peers` "
-                 "(an earlier run on this machine, not this one).")
+    vrows = [r["vmas"] for r in res["compare"] if "vmas" in r]
+    if vrows:
+        L.append(f"VMAS {vrows[0].get('vmas', '?')} on torch {vrows[0].get('torch', '?')} (best of torch threads "
+                 f"{'/'.join(map(str, meta['threads']))}), measured in this run right after finkensim on each row.")
     else:
-        L.append("VMAS: not measured (run `make bench-peers` to create `out/bench/peers.json`).")
+        L.append(f"VMAS: not measured ({peers.get('why') if peers else 'skipped'}).")
     L.append("")
     L.append("| N | B | finkensim env-steps/s | finkensim copter-steps/s | NumPy env-steps/s | VMAS env-steps/s | "
              "finkensim / NumPy | finkensim / VMAS | threads finkensim / VMAS | mem/env finkensim | mem/env NumPy | "
@@ -320,6 +372,14 @@ def report(res: dict) -> str:
     if sc:
         L.append(sc["markdown"])
     L.append("")
+    L.append("## Targets (from this run)")
+    L.append("")
+    L.append("| target | measured | met |")
+    L.append("|---|---:|---|")
+    for t in targets(res):
+        met = "not measured" if t["met"] is None else ("yes" if t["met"] else "**no**")
+        L.append(f"| {t['target']} | {t['measured'] or '—'} | {met} |")
+    L.append("")
     L.append("Methods: see `benchmarks/run.py` (timing: best of interleaved repeats; memory: tracemalloc peak "
              "over build + 1 step ÷ B, kernel-internal numba buffers not traced; VMAS memory: ru_maxrss delta).")
     return "\n".join(L) + "\n"
@@ -329,7 +389,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="finkensim benchmarks (make bench)")
     ap.add_argument("--quick", action="store_true", help="tiny subset, a few seconds")
     ap.add_argument("--out", default="out/bench", help="output directory (bench.md, bench.json, scaling.png)")
-    ap.add_argument("--peers", default=None, help="peer results JSON (default: OUT/peers.json)")
+    ap.add_argument("--peers-python", default=None,
+                    help="Python with torch and vmas (default: .venv-peers/bin/python, from `make bench-peers`)")
+    ap.add_argument("--no-peers", action="store_true", help="skip VMAS")
     ap.add_argument("--seconds", type=float, default=None, help="target seconds per timed call")
     ap.add_argument("--repeats", type=int, default=None)
     ap.add_argument("--no-compile", action="store_true", help="skip the cold/warm JIT probes")
@@ -356,17 +418,12 @@ def main(argv=None) -> int:
     res: dict = dict(meta=meta)
     max_threads = numba.get_num_threads()
     threads = tuple(sorted({1, max_threads}))
-    res["compare"] = bench_compare(ns, bs, seconds, repeats, log, threads)
-    peers_path = Path(a.peers) if a.peers else out / "peers.json"
-    peers = load_peers(peers_path)
-    if peers:
-        res["peers"] = {k: v for k, v in peers.items() if k != "by_config"}
-        res["peers_path"] = str(peers_path)
-        for r in res["compare"]:
-            v = peers["by_config"].get((r["N"], r["B"]))
-            if v:
-                r["vmas"] = v
-                r["ratio_vmas"] = r["finkensim"]["env_steps_per_s"] / v["env_steps_per_s"]
+    meta["threads"] = list(threads)
+    peers_py, why = (None, "--no-peers") if a.no_peers else peer_python(a.peers_python)
+    res["peers"] = dict(python=peers_py, why=why)
+    if peers_py is None:
+        log(f"VMAS not measured: {why}")
+    res["compare"] = bench_compare(ns, bs, seconds, repeats, log, threads, peers_py)
     if not a.quick and not a.no_finken:
         rows, status = bench_finken(ns, bs, seconds, repeats, log, threads)
         res["finken"] = dict(rows=rows, status=status)

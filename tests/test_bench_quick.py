@@ -15,7 +15,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def test_bench_quick_runs(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), MPLBACKEND="Agg")
-    p = subprocess.run([sys.executable, "-m", "benchmarks.run", "--quick", "--out", str(tmp_path)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "benchmarks.run", "--quick", "--no-peers", "--out", str(tmp_path)],
+                       cwd=ROOT,
                        env=env, capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stderr[-3000:]
     md = (tmp_path / "bench.md").read_text()
@@ -29,6 +30,25 @@ def test_bench_quick_runs(tmp_path):
     assert [r["N"] for r in res["scaling"]["rows"]] == [10, 100]
     assert (tmp_path / "scaling.png").exists()
     assert "finkensim / NumPy" in p.stdout
+    assert "VMAS: not measured (--no-peers)" in md and "## Targets (from this run)" in md
+
+
+def test_targets_are_judged_from_the_run():
+    """The targets table compares this run's figures with the thresholds; what the run did not measure says so."""
+    from benchmarks.run import targets
+
+    res = dict(compare=[dict(N=10, B=1024, finkensim=dict(env_steps_per_s=3.0e5), ratio_numpy=12.0, ratio_vmas=80.0),
+                        dict(N=10, B=1, finkensim=dict(env_steps_per_s=1.0e5), ratio_numpy=20.0, ratio_vmas=6000.0)],
+               finken=dict(status="", rows=[dict(N=10, B=1024, env_steps_per_s=1.2e5)]),
+               compile=[dict(workload="finken", cold=dict(first_call_s=20.0), warm=dict(first_call_s=0.5))])
+    by_target = {t["target"]: (t["measured"], t["met"]) for t in targets(res)}
+    assert by_target["full FINken workload / comparison workload ≤ 3× (N = 10, B = 1024)"] == ("2.5×", True)
+    assert by_target["comparison workload ≥ 100× VMAS (N = 10, B = 1024)"] == ("80×", False)
+    assert by_target["comparison workload ≥ 5,000× VMAS (N = 10, B = 1)"] == ("6,000×", True)
+    assert by_target["comparison workload ≥ 10× plain NumPy (N = 10, B = 1024)"] == ("12.0×", True)
+    assert by_target["cold JIT, full workload first call ≤ 5 s"] == ("20.0 s", False)
+    assert by_target["warm (cached) first call, full workload ≤ 1 s"] == ("0.50 s", True)
+    assert by_target["Gymnasium vector env ≥ 100 k env-steps/s (N = 10, B = 1024, sensors on)"] == (None, None)
 
 
 def test_comparison_workload_numba_equals_numpy():

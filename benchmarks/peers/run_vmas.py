@@ -59,6 +59,28 @@ def run_one(n: int, b: int, seconds: float, threads: int | None = None) -> dict:
                 torch=torch.__version__, vmas=getattr(vmas, "__version__", "?"), threads=torch.get_num_threads())
 
 
+def measure_config(python: str, n: int, b: int, seconds: float, threads=(1, 2), cwd: str | None = None) -> dict:
+    """VMAS on (N, B) with each torch thread count in ``threads``, each in a fresh subprocess of the interpreter
+    ``python`` (one that has torch and vmas): the fastest result (with ``by_threads``), or a dict with ``error``."""
+    tries = []
+    for th in threads:
+        cmd = [python, "-m", "benchmarks.peers.run_vmas", "--one", str(n), str(b), "--seconds", str(seconds),
+               "--threads", str(th)]
+        p = subprocess.run(cmd, capture_output=True, text=True, cwd=cwd)
+        if p.returncode != 0:
+            print(f"vmas N={n} B={b} threads={th}: failed\n{p.stderr[-2000:]}", file=sys.stderr)
+            tries.append(dict(N=n, B=b, threads=th,
+                              error=p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "failed"))
+            continue
+        tries.append(json.loads(p.stdout.strip().splitlines()[-1]))
+    ok = [r for r in tries if "error" not in r]
+    if not ok:
+        return tries[-1]
+    r = dict(max(ok, key=lambda r: r["env_steps_per_s"]))
+    r["by_threads"] = {str(t["threads"]): t["env_steps_per_s"] for t in ok}
+    return r
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="N=10, B in {1, 64}, 0.3 s each")
@@ -75,26 +97,12 @@ def main(argv=None) -> int:
     seconds = a.seconds or (0.3 if a.quick else 2.0)
     results = []
     for n, b in configs:
-        tries = []
-        for th in a.threads:
-            cmd = [sys.executable, "-m", "benchmarks.peers.run_vmas", "--one", str(n), str(b), "--seconds",
-                   str(seconds), "--threads", str(th)]
-            p = subprocess.run(cmd, capture_output=True, text=True)
-            if p.returncode != 0:
-                print(f"vmas N={n} B={b} threads={th}: failed\n{p.stderr[-2000:]}", file=sys.stderr)
-                tries.append(dict(N=n, B=b, threads=th,
-                                  error=p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "failed"))
-                continue
-            tries.append(json.loads(p.stdout.strip().splitlines()[-1]))
-        ok = [r for r in tries if "error" not in r]
-        if not ok:
-            results.append(tries[-1])
-            continue
-        r = dict(max(ok, key=lambda r: r["env_steps_per_s"]))
-        r["by_threads"] = {str(t["threads"]): t["env_steps_per_s"] for t in ok}
+        r = measure_config(sys.executable, n, b, seconds, a.threads)
         results.append(r)
-        print(f"vmas N={n:4d} B={b:5d}: {r['env_steps_per_s']:12.1f} env-steps/s  "
-              f"{r['peak_bytes_per_env'] / 1024:10.1f} KiB/env  (best of torch threads {r['by_threads']})", flush=True)
+        if "error" not in r:
+            print(f"vmas N={n:4d} B={b:5d}: {r['env_steps_per_s']:12.1f} env-steps/s  "
+                  f"{r['peak_bytes_per_env'] / 1024:10.1f} KiB/env  (best of torch threads {r['by_threads']})",
+                  flush=True)
     meta = dict(peer="vmas", python=platform.python_version(), machine=platform.machine(), cpus=os.cpu_count(),
                 time=time.strftime("%Y-%m-%dT%H:%M:%S"), quick=a.quick)
     ok = [r for r in results if "error" not in r]
