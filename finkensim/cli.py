@@ -78,6 +78,7 @@ def _add_run(sub) -> None:
 def cmd_run(args) -> int:
     prog = args.prog
     t_start = time.perf_counter()
+    from .compiletime import compile_timer
     from .config import ConfigError
     from .flightlog import save
     from .scenario import simulate_flight
@@ -87,14 +88,17 @@ def cmd_run(args) -> int:
 
     t0 = time.perf_counter()
     try:
-        log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
+        with compile_timer() as jit:
+            log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)
     t_sim = time.perf_counter() - t0
     sim = world.cfg.simulation
     print(f"{prog}: simulated {sim.duration:g} s of {world.n_copters} copters "
-          f"({log.n_steps} samples, dt {sim.dt:g} s, seed {sim.seed}, {world.cfg.behaviour.kind}) in {t_sim:.2f} s")
+          f"({log.n_steps} samples, dt {sim.dt:g} s, seed {sim.seed}, {world.cfg.behaviour.kind}) in {t_sim:.2f} s: "
+          f"JIT compile {jit.seconds:.2f} s ({jit.kernels} kernels; 0 when numba's cache is warm), the rest "
+          f"{t_sim - jit.seconds:.2f} s")
 
     _use_agg()
     import matplotlib.pyplot as plt

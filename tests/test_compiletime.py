@@ -1,0 +1,27 @@
+"""finkensim.compiletime: outermost numba compile intervals, measured on a real compilation."""
+from __future__ import annotations
+
+from numba import njit
+
+from finkensim.compiletime import compile_timer, outermost_seconds
+
+
+def test_nested_compilations_count_once():
+    # outer 0..10 holds inner 2..5 and 6..7; then a separate 12..13
+    events = [(0, True), (2, True), (5, False), (6, True), (7, False), (10, False), (12, True), (13, False)]
+    assert outermost_seconds(events) == (11, 2)
+    assert outermost_seconds([]) == (0.0, 0)
+    assert outermost_seconds([(1, False)]) == (0.0, 0)  # an END without START (recorder installed mid-compile)
+
+
+def test_compile_timer_sees_a_compilation_and_not_a_second_call():
+    @njit  # no cache: a fresh function compiles on its first call
+    def add_one(x):
+        return x + 1
+
+    with compile_timer() as first:
+        assert add_one(1) == 2
+    with compile_timer() as second:
+        assert add_one(2) == 3
+    assert first.kernels >= 1 and first.seconds > 0.0
+    assert second.kernels == 0 and second.seconds == 0.0
