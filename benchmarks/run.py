@@ -367,6 +367,18 @@ def report(res: dict) -> str:
                 continue
             L.append(f"| {r['workload']} | {w['import_s']:.2f} | {c['first_call_s']:.2f} | {w['first_call_s']:.2f} | "
                      f"{c['process_s']:.1f} | {w['process_s']:.1f} |")
+        for r in res["compile"]:
+            prof = r["cold"].get("profile")
+            if not prof:
+                continue
+            L.append("")
+            L.append(f"Where the cold compile of `{r['workload']}` goes (numba compile events, `finkensim.compiletime`; "
+                     "own = minus the kernels it compiled in turn):")
+            L.append("")
+            L.append("| kernel | seconds | own seconds |")
+            L.append("|---|---:|---:|")
+            for k in prof:
+                L.append(f"| {'&nbsp;&nbsp;' * k['depth']}{k['name']} | {k['seconds']:.2f} | {k['own_seconds']:.2f} |")
     L.append("")
     sc = res.get("scaling")
     if sc:

@@ -25,3 +25,13 @@ def test_compile_timer_sees_a_compilation_and_not_a_second_call():
         assert add_one(2) == 3
     assert first.kernels >= 1 and first.seconds > 0.0
     assert second.kernels == 0 and second.seconds == 0.0
+
+
+def test_profile_nests_and_subtracts_children():
+    from finkensim.compiletime import CompileTime
+
+    ct = CompileTime(intervals=[(0.0, 0, 10.0, "outer"), (1.0, 1, 3.0, "a"), (5.0, 1, 2.0, "b"),
+                                (5.5, 2, 1.0, "b_inner"), (11.0, 0, 0.1, "tiny")])
+    prof = ct.profile(max_depth=1, min_seconds=0.2)
+    assert [(r["name"], r["depth"]) for r in prof] == [("outer", 0), ("a", 1), ("b", 1)]
+    assert prof[0]["own_seconds"] == 5.0 and prof[2]["own_seconds"] == 1.0
