@@ -220,6 +220,30 @@ def range_spec(p, where: str, key: str, kind: str, spec) -> tuple:
     return lo, hi, log
 
 
+def param_spec(p, section: str, key: str, spec) -> tuple:
+    """(kind, choices, (low, high, log)) of one parameter spec ``{low, high[, log]}`` or ``{choices = [..]}`` of
+    config key ``key`` in table ``[section]``, checked (a known key; a table with only known spec keys; choices a
+    non-empty list, alone; a valid range, see :func:`range_spec`). choices is None for a range, and the range
+    (None, None, False) for choices. Sweep files' ``[random]`` and study files' ``[params]`` share it."""
+    p.check_key(section, key)
+    where = f"[{section}] {key}"
+    if not isinstance(spec, Mapping):
+        raise p.error(f"{where} = {spec!r}: expected {{low = .., high = ..}} or {{choices = [..]}}")
+    unknown = [k for k in spec if k not in SPEC_KEYS]
+    if unknown:
+        raise p.error(f"{where}: unknown key {unknown[0]!r}{suggest(unknown[0], SPEC_KEYS)}; "
+                      f"allowed: low, high, log (or choices)")
+    kind = field_kind(key)
+    if "choices" in spec:
+        if set(spec) != {"choices"}:
+            raise p.error(f"{where}: give either choices or low/high, not both")
+        choices = spec["choices"]
+        if not isinstance(choices, list) or not choices:
+            raise p.error(f"{where}.choices = {choices!r}: expected a non-empty list of values")
+        return kind, tuple(choices), (None, None, False)
+    return kind, None, range_spec(p, where, key, kind, spec)
+
+
 def random_design(p: Parser, table, seed) -> list[dict[str, Any]]:
     """The combinations of a ``[random]`` table: ``n_samples`` dicts of dotted key -> drawn value, drawn in
     file order from SeedSequence([seed, 2])."""
@@ -235,24 +259,10 @@ def random_design(p: Parser, table, seed) -> list[dict[str, Any]]:
     seed = p.integer("seed", seed, 0, 2**63 - 1)
     draws: dict[str, Callable[[np.random.Generator], Any]] = {}
     for key, spec in specs.items():
-        p.check_key("random", key)
-        where = f"[random] {key}"
-        if not isinstance(spec, Mapping):
-            raise p.error(f"{where} = {spec!r}: expected {{low = .., high = ..}} or {{choices = [..]}}")
-        unknown = [k for k in spec if k not in SPEC_KEYS]
-        if unknown:
-            raise p.error(f"{where}: unknown key {unknown[0]!r}{suggest(unknown[0], SPEC_KEYS)}; "
-                          f"allowed: low, high, log (or choices)")
-        kind = field_kind(key)
-        if "choices" in spec:
-            if set(spec) != {"choices"}:
-                raise p.error(f"{where}: give either choices or low/high, not both")
-            choices = spec["choices"]
-            if not isinstance(choices, list) or not choices:
-                raise p.error(f"{where}.choices = {choices!r}: expected a non-empty list of values")
+        kind, choices, (lo, hi, log) = param_spec(p, "random", key, spec)
+        if choices is not None:
             draws[key] = lambda rng, c=list(choices): c[int(rng.integers(len(c)))]
             continue
-        lo, hi, log = range_spec(p, where, key, kind, spec)
         if kind == "int":
             if log:
                 draws[key] = lambda rng, a=lo, b=hi: int(min(b, math.floor(math.exp(rng.uniform(math.log(a), math.log(b + 1))))))

@@ -43,8 +43,8 @@ from typing import Any, Mapping
 
 from ..config import Config, ConfigError
 from ..metrics import METRICS
-from ..sweep.checks import Parser, field_kind, is_duration, suggest
-from ..sweep.sweepfile import SPEC_KEYS, base_from_table, range_spec, read_sweep_toml
+from ..sweep.checks import Parser, is_duration, suggest
+from ..sweep.sweepfile import SPEC_KEYS, base_from_table, param_spec, read_sweep_toml
 
 __all__ = ["Param", "StudySpec", "parse_study", "TOP_KEYS", "SAMPLERS"]
 
@@ -103,23 +103,9 @@ class StudySpec:
 
 
 def _param(p: Parser, key: str, spec) -> Param:
-    p.check_key("params", key)
-    where = f"[params] {key}"
-    if not isinstance(spec, Mapping):
-        raise p.error(f"{where} = {spec!r}: expected {{low = .., high = ..}} or {{choices = [..]}}")
-    unknown = [k for k in spec if k not in SPEC_KEYS]
-    if unknown:
-        raise p.error(f"{where}: unknown key {unknown[0]!r}{suggest(unknown[0], SPEC_KEYS)}; allowed: low, high, log "
-                      "(or choices)")
-    kind = field_kind(key)
-    if "choices" in spec:
-        choices = spec["choices"]
-        if set(spec) != {"choices"}:
-            raise p.error(f"{where}: give either choices or low/high, not both")
-        if not isinstance(choices, list) or not choices:
-            raise p.error(f"{where}.choices = {choices!r}: expected a non-empty list of values")
-        return Param(key, kind, choices=tuple(choices))
-    lo, hi, log = range_spec(p, where, key, kind, spec)
+    kind, choices, (lo, hi, log) = param_spec(p, "params", key, spec)
+    if choices is not None:
+        return Param(key, kind, choices=choices)
     return Param(key, kind, low=lo, high=hi, log=log)
 
 
