@@ -16,7 +16,7 @@ from .format import DEFAULT_COPTER_RADIUS, FlightLog, FlightLogError
 from .messages import fmt, plural
 from .validation import validate
 
-__all__ = ["CSV_COLUMNS", "from_csv"]
+__all__ = ["CSV_COLUMNS", "from_csv", "read_table", "numeric_column"]
 
 CSV_COLUMNS = ("t", "copter", "x", "y", "yaw")
 """The columns of a tracking CSV: time (s), copter name, x (m), y (m), yaw (rad)."""
@@ -25,6 +25,66 @@ CSV_COLUMNS = ("t", "copter", "x", "y", "yaw")
 def _natural_key(s: str):
     """Sort key that orders the digit runs of ``s`` by value: ``cf2`` before ``cf10``."""
     return [(0, int(tok), "") if tok.isdigit() else (1, 0, tok) for tok in re.split(r"(\d+)", s) if tok != ""]
+
+
+def read_table(path: Path, columns, where: str):
+    """(df, lines): the CSV at ``path`` as a DataFrame of stripped strings with exactly the header ``columns`` (in
+    any order), blank rows removed, and the 1-based file line of each row. Errors name ``where``: a missing or
+    empty file, unparseable text, missing / unknown / repeated columns, no data rows."""
+    import pandas as pd
+
+    if not path.exists():
+        raise FlightLogError(f"{where}: file does not exist")
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True, skip_blank_lines=False)
+    except pd.errors.EmptyDataError:
+        raise FlightLogError(f"{where}: file is empty; expected a header row {', '.join(columns)} and data rows") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, OSError) as exc:
+        raise FlightLogError(f"{where}: cannot be parsed as CSV ({exc})") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    cols = list(df.columns)
+    missing = [c for c in columns if c not in cols]
+    unknown = [c for c in cols if c not in columns]
+    dup_cols = sorted({c for c in cols if cols.count(c) > 1})
+    if missing or unknown or dup_cols:
+        parts = []
+        if missing:
+            parts.append(f"missing column(s) {', '.join(map(repr, missing))}")
+        if unknown:
+            parts.append(f"unknown column(s) {', '.join(map(repr, unknown))}")
+        if dup_cols:
+            parts.append(f"repeated column(s) {', '.join(map(repr, dup_cols))}")
+        raise FlightLogError(
+            f"{where}: {'; '.join(parts)}; expected a header row with exactly the columns {', '.join(columns)}"
+        )
+    lines = np.arange(len(df)) + 2  # 1-based file line numbers (line 1 is the header)
+    blank = (df.fillna("").apply(lambda col: col.str.strip()) == "").all(axis=1).to_numpy()
+    df, lines = df[~blank], lines[~blank]
+    if len(df) == 0:
+        raise FlightLogError(f"{where}: no data rows; expected rows {', '.join(columns)}")
+    return df, lines
+
+
+def numeric_column(df, column: str, lines, where: str, copter, why: str, allow_nan: bool = False) -> np.ndarray:
+    """Column ``column`` of the string DataFrame ``df`` as float64 (n,); a cell that is not a finite number (or,
+    with ``allow_nan``, NaN / an empty cell) is an error naming the column, line, copter and the bad cell count."""
+    import pandas as pd
+
+    s = df[column].str.strip()
+    num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
+    if allow_nan:
+        lost = s.str.lower().isin(["", "nan"]).to_numpy()
+        bad = ~np.isfinite(num) & ~lost
+    else:
+        bad = ~np.isfinite(num)
+    if bad.any():
+        i = int(np.argmax(bad))
+        expected = "a finite number" + (" (NaN or empty = no reading)" if allow_nan else "")
+        raise FlightLogError(
+            f"{where}: column {column!r} at line {lines[i]} (copter {copter[i]!r}) is {df[column].iloc[i]!r}; "
+            f"expected {expected} ({plural(int(bad.sum()), 'bad cell')}; {why})"
+        )
+    return num
 
 
 def from_csv(path: str | os.PathLike, arena, *, copter_radius: float = DEFAULT_COPTER_RADIUS,
@@ -39,55 +99,15 @@ def from_csv(path: str | os.PathLike, arena, *, copter_radius: float = DEFAULT_C
     unknown columns, empty or non-numeric cells are errors naming the column and line. The
     log is validated (units included) before it is returned.
     """
-    import pandas as pd
-
     p = Path(path)
     where = f"flight log CSV {str(p)!r}"
-    if not p.exists():
-        raise FlightLogError(f"{where}: file does not exist")
-    try:
-        df = pd.read_csv(p, dtype=str, keep_default_na=False, skipinitialspace=True, skip_blank_lines=False)
-    except pd.errors.EmptyDataError:
-        raise FlightLogError(f"{where}: file is empty; expected a header row {', '.join(CSV_COLUMNS)} and data rows") from None
-    except (pd.errors.ParserError, UnicodeDecodeError, OSError) as exc:
-        raise FlightLogError(f"{where}: cannot be parsed as CSV ({exc})") from None
-    df.columns = [str(c).strip() for c in df.columns]
-    cols = list(df.columns)
-    missing = [c for c in CSV_COLUMNS if c not in cols]
-    unknown = [c for c in cols if c not in CSV_COLUMNS]
-    dup_cols = sorted({c for c in cols if cols.count(c) > 1})
-    if missing or unknown or dup_cols:
-        parts = []
-        if missing:
-            parts.append(f"missing column(s) {', '.join(map(repr, missing))}")
-        if unknown:
-            parts.append(f"unknown column(s) {', '.join(map(repr, unknown))}")
-        if dup_cols:
-            parts.append(f"repeated column(s) {', '.join(map(repr, dup_cols))}")
-        raise FlightLogError(
-            f"{where}: {'; '.join(parts)}; expected a header row with exactly the columns {', '.join(CSV_COLUMNS)}"
-        )
-    lines = np.arange(len(df)) + 2  # 1-based file line numbers (line 1 is the header)
-    blank = (df.fillna("").apply(lambda col: col.str.strip()) == "").all(axis=1).to_numpy()
-    df, lines = df[~blank], lines[~blank]
-    if len(df) == 0:
-        raise FlightLogError(f"{where}: no data rows; expected rows t, copter, x, y, yaw")
+    df, lines = read_table(p, CSV_COLUMNS, where)
     copter = [str(c) for c in df["copter"].str.strip()]
     if "" in copter:
         i = copter.index("")
         raise FlightLogError(f"{where}: column 'copter' is empty at line {lines[i]}; expected a copter name")
-    values = {}
-    for c in ("t", "x", "y", "yaw"):
-        s = df[c].str.strip()
-        num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
-        bad = ~np.isfinite(num)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise FlightLogError(
-                f"{where}: column {c!r} at line {lines[i]} (copter {copter[i]!r}) is {df[c].iloc[i]!r}; "
-                f"expected a finite number ({plural(int(bad.sum()), 'bad cell')}; missing poses are not interpolated)"
-            )
-        values[c] = num
+    values = {c: numeric_column(df, c, lines, where, copter, "missing poses are not interpolated")
+              for c in ("t", "x", "y", "yaw")}
 
     times = np.unique(values["t"])
     ids = sorted(set(copter), key=lambda s: (_natural_key(s), s))
