@@ -186,6 +186,21 @@ class SonarTable(Table):
         return out, period
 
 
+def expected_ranging(f) -> np.ndarray:
+    """(T, N, N) bool: where flight f's log expected a ranging reading. An imported recording marks it in the extra
+    ``ranging_expected`` (a reading, a value or a lost one, was recorded there), so a NaN where the radio did not
+    sample is not a dropout; without the extra every entry is expected (a synchronous log)."""
+    e = f.log.extras.get("ranging_expected") if f.log.extras else None
+    shape = f.log.ranging.shape
+    if e is None:
+        return np.ones(shape, dtype=bool)
+    e = np.asarray(e)
+    if e.shape != shape or e.dtype != np.bool_:
+        raise rp.GapInputError(f"{f.name}: extra array ranging_expected has shape {e.shape} and dtype {e.dtype}; "
+                            f"expected bool of the ranging shape {shape}")
+    return e
+
+
 class RangingTable(Table):
     """Virtual-ranging readings; the dropout channel is scored separately from the values."""
 
@@ -212,7 +227,7 @@ class RangingTable(Table):
             rr = range_rate(tr, f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
             nd = nearest_neighbor(P)
             wd = wall_distance(P, f.arena)
-            sel = off
+            sel = off & expected_ranging(f)[f.samples]
             append_identity(cols, f, y, sel, kk, aa, bb)
             cols["miss"].append(miss[sel])
             cols["clear"].append(clear[sel])

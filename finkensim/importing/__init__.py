@@ -1,9 +1,23 @@
 """Import asynchronous arena recordings (CSV, ROS 1/ROS 2 bags, MCAP) into ``spec/flightlog.md`` flights.
 
-:class:`Recording` is the common long-form form every reader produces (see :mod:`.recording`).
+    from finkensim.importing import read_csv, build_flight
+    rec = read_csv("track.csv", "read.csv")              # a Recording: long-form tables, nothing resampled
+    log = build_flight(rec, arena=(3, 4), sonar_yaw=np.radians([0, 90, 180, -90]), sonar_offset=0.1)
+
+:class:`Recording` is the common long-form form every reader produces (:mod:`.recording`); :func:`build_flight`
+checks it, estimates or applies the clock offset (:mod:`.clock`), places every reading unchanged on a common time
+base and interpolates the poses to it (:mod:`.align`, :mod:`.poses`). :func:`to_recording` / :func:`write_csv`
+(:mod:`.export`) turn a simulated flight into an asynchronous recording, for tests and demonstrations.
 """
 from __future__ import annotations
 
-from .recording import IMU_CHANNELS, READING_COLUMNS, TRACKING_COLUMNS, Recording
+from .align import build_flight, place_readings
+from .clock import ClockEstimate, ClockOffsetError, estimate_offset
+from .csvtables import read_csv
+from .export import to_recording, write_csv
+from .recording import (IMU_CHANNELS, READING_COLUMNS, TRACKING_COLUMNS, Recording, RecordingError, check_recording,
+                        parse_channel)
 
-__all__ = ["Recording", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS"]
+__all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "read_csv",
+           "build_flight", "place_readings", "check_recording", "parse_channel", "estimate_offset", "ClockEstimate",
+           "ClockOffsetError", "to_recording", "write_csv"]

@@ -10,21 +10,42 @@ Channels (column ``channel`` of :attr:`Recording.readings`):
 ==========================  ======  ==========================================================
 ``ultrasonic/<i>``          m       sonar ``i`` (index into the sonar yaw list), measured from the sonar
 ``ranging/<copter name>``   m       virtual-ranging reading of the named other copter
-``imu/acc_x``, ``imu/acc_y`` m/s²   body-frame acceleration
+``imu/acc_x``, ``imu/acc_y`` m/s²   body-frame acceleration (x forward, y left)
 ``imu/gyro``                rad/s   yaw rate
 ==========================  ======  ==========================================================
+
+:func:`check_recording` is the one place that checks a recording, whatever file it came from: every error is a
+:class:`RecordingError` naming the table, the column or channel, the value and what was expected.
 """
 from __future__ import annotations
 
+import difflib
+import math
+import re
 from dataclasses import dataclass, field
 
-__all__ = ["Recording", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS"]
+import numpy as np
+
+from ..flightlog import FlightLogError
+from ..flightlog.messages import fmt
+
+__all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "Channel",
+           "parse_channel", "check_recording", "CheckedRecording"]
 
 #: columns of :attr:`Recording.tracking`: t (s), copter (name), x, y (m), yaw (rad)
 TRACKING_COLUMNS = ("t", "copter", "x", "y", "yaw")
 #: columns of :attr:`Recording.readings`: t (s), copter (name), channel (see module doc), value (channel's unit)
 READING_COLUMNS = ("t", "copter", "channel", "value")
 IMU_CHANNELS = ("imu/acc_x", "imu/acc_y", "imu/gyro")
+_CHANNEL_FORMS = ("ultrasonic/<i>", "ranging/<copter>") + IMU_CHANNELS
+
+#: the median interval between samples of one stream above which times look like milliseconds (s): tracking
+#: systems record at 50-500 Hz and sensors at 5-200 Hz, so 0.5 s between samples means a unit problem
+MS_INTERVAL = 0.5
+
+
+class RecordingError(FlightLogError):
+    """A recording (CSV pair, bag, tables) cannot be imported; the message names what and where."""
 
 
 @dataclass(frozen=True)
@@ -45,3 +66,217 @@ class Recording:
     readings: object
     source: str = ""
     notes: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Channel:
+    """A parsed channel name: kind 'ultrasonic' (index = sonar index), 'ranging' (other = copter name) or 'imu'
+    (axis = 0 acc_x, 1 acc_y, 2 gyro)."""
+
+    kind: str
+    index: int = -1
+    other: str = ""
+    axis: int = -1
+
+
+_ULTRA = re.compile(r"^ultrasonic/(\d+)$")
+
+
+def parse_channel(name: str) -> Channel:
+    """The :class:`Channel` of a channel name, or a RecordingError with the nearest valid form."""
+    m = _ULTRA.match(name)
+    if m:
+        return Channel("ultrasonic", index=int(m.group(1)))
+    if name.startswith("ranging/") and len(name) > len("ranging/"):
+        return Channel("ranging", other=name[len("ranging/"):])
+    if name in IMU_CHANNELS:
+        return Channel("imu", axis=IMU_CHANNELS.index(name))
+    close = difflib.get_close_matches(name, ["ultrasonic/0", "ranging/", *IMU_CHANNELS], n=1, cutoff=0.6)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    raise RecordingError(f"readings: unknown channel {name!r}{hint}; expected one of {', '.join(_CHANNEL_FORMS)}")
+
+
+@dataclass
+class CheckedRecording:
+    """A checked recording as arrays, rows grouped by stream and sorted by time within it.
+
+    copters: copter names, tracking first-seen order. Tracking (rows sorted by copter, then t): tr_copter (n,)
+    int index into copters, tr_t, tr_x, tr_y, tr_yaw (n,) float64. Readings (rows sorted by stream, then t):
+    rd_copter (m,) int, rd_kind (m,) int (0 ultrasonic, 1 ranging, 2 imu), rd_slot (m,) int (sonar index, index
+    of the other copter, or IMU axis), rd_t (m,) s, rd_value (m,) with NaN = lost; rd_stream (m,) int, one per
+    (copter, channel); stream_names: the channel name of each stream as ``"copter:channel"``.
+    dropped: reason -> number of rows not used.
+    """
+
+    copters: list
+    tr_copter: np.ndarray
+    tr_t: np.ndarray
+    tr_x: np.ndarray
+    tr_y: np.ndarray
+    tr_yaw: np.ndarray
+    rd_copter: np.ndarray
+    rd_kind: np.ndarray
+    rd_slot: np.ndarray
+    rd_t: np.ndarray
+    rd_value: np.ndarray
+    rd_stream: np.ndarray
+    stream_names: list
+    dropped: dict
+
+
+KIND_ULTRASONIC, KIND_RANGING, KIND_IMU = 0, 1, 2
+KIND_NAMES = ("ultrasonic", "ranging", "imu")
+
+
+def _columns(df, columns, table):
+    missing = [c for c in columns if c not in df.columns]
+    if missing:
+        raise RecordingError(f"{table}: missing column(s) {', '.join(map(repr, missing))}; expected the columns "
+                             f"{', '.join(columns)}")
+
+
+def _floats(df, column, table, allow_nan=False):
+    import pandas as pd
+
+    col = df[column]
+    v = pd.to_numeric(col, errors="coerce").to_numpy(dtype=np.float64)
+    if not allow_nan:
+        lost = np.zeros(v.size, dtype=bool)
+    elif col.dtype.kind == "f":
+        lost = np.isnan(v)
+    else:
+        lost = col.isna().to_numpy() | col.astype(str).str.strip().str.lower().isin(["", "nan"]).to_numpy()
+    bad = ~np.isfinite(v) & ~lost
+    if bad.any():
+        i = int(np.argmax(bad))
+        exp = "a finite number" + (" (NaN = lost reading)" if allow_nan else "")
+        raise RecordingError(f"{table}: column {column!r} row {i} is {col.iloc[i]!r}; expected {exp} "
+                             f"({int(bad.sum())} bad value(s))")
+    return v
+
+
+def _names(df, column, table):
+    """(codes (n,) int64, names list) of a name column, in first-seen order; empty names are an error."""
+    import pandas as pd
+
+    col = df[column]
+    empty = (col.isna() | (col.astype(str).str.strip() == "")).to_numpy()
+    if empty.any():
+        i = int(np.argmax(empty))
+        raise RecordingError(f"{table}: column {column!r} row {i} is empty; expected a name")
+    codes, uniques = pd.factorize(col.astype(str).str.strip(), sort=False)
+    return codes.astype(np.int64), [str(u) for u in uniques]
+
+
+def _increasing(stream, t, table, label, names, rows):
+    """Times strictly increasing within each stream, in the rows' own order: otherwise a named error."""
+    same = stream[1:] == stream[:-1]
+    dt = np.diff(t)
+    bad = same & (dt <= 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = "repeated" if dt[i] == 0 else "not increasing"
+        raise RecordingError(
+            f"{table}: {label} {names[stream[i + 1]]!r} times are {what} at row {rows[i + 1]} (t = {fmt(t[i + 1])} s "
+            f"after {fmt(t[i])} s; {int(bad.sum())} such row(s)); expected each {label}'s rows in strictly "
+            "increasing time (sort them by time; remove duplicated samples)")
+
+
+def _median_interval(stream, t):
+    same = stream[1:] == stream[:-1]
+    d = np.diff(t)[same]
+    return float(np.median(d)) if d.size else math.nan
+
+
+def check_recording(rec: Recording) -> CheckedRecording:
+    """Check a :class:`Recording` and return it as arrays (:class:`CheckedRecording`).
+
+    Errors (:class:`RecordingError`): missing columns; non-numeric or non-finite times, positions, yaw (readings may
+    be NaN = lost); empty names; unknown channels; a stream (copter, or copter and channel) whose times are not
+    strictly increasing in the order given; a copter with readings but no tracking; ranging to an unknown copter;
+    times that look like milliseconds (median interval ≥ 0.5 s); yaw that looks like degrees. Positions and ranges
+    that look like centimetres or millimetres are judged against the arena in :func:`build_flight`.
+    """
+    tr, rd = rec.tracking, rec.readings
+    _columns(tr, TRACKING_COLUMNS, "tracking")
+    _columns(rd, READING_COLUMNS, "readings")
+    if len(tr) == 0:
+        raise RecordingError("tracking: no rows; expected each copter's poses (t, copter, x, y, yaw)")
+    ci, copters = _names(tr, "copter", "tracking")
+    t = _floats(tr, "t", "tracking")
+    x, y, yaw = (_floats(tr, c, "tracking") for c in ("x", "y", "yaw"))
+    index = {c: k for k, c in enumerate(copters)}
+    order = np.argsort(ci, kind="stable")
+    rows = np.arange(ci.size)[order]
+    ci, t, x, y, yaw = ci[order], t[order], x[order], y[order], yaw[order]
+    _increasing(ci, t, "tracking", "copter", copters, rows)
+    step = _median_interval(ci, t)
+    if step >= MS_INTERVAL:
+        raise RecordingError(f"tracking: the median interval between a copter's poses is {fmt(step)}; that looks "
+                             "like milliseconds (tracking systems record at 50-500 Hz): convert t to seconds")
+    _check_yaw(ci, t, yaw)
+
+    n = len(rd)
+    dropped = {}
+    if n == 0:
+        empty_i, empty_f = np.zeros(0, dtype=np.int64), np.zeros(0)
+        return CheckedRecording(copters, ci, t, x, y, yaw, empty_i, empty_i, empty_i, empty_f, empty_f, empty_i, [],
+                                dropped)
+    rcode, rnames = _names(rd, "copter", "readings")
+    chi, names = _names(rd, "channel", "readings")
+    rt = _floats(rd, "t", "readings")
+    val = _floats(rd, "value", "readings", allow_nan=True)
+    unknown_copters = sorted(set(rnames) - set(copters))
+    if unknown_copters:
+        raise RecordingError(f"readings: copter {unknown_copters[0]!r} has readings but no tracking "
+                             f"({len(unknown_copters)} such copter(s)); tracked copters: {', '.join(copters)}")
+    parsed = {nm: parse_channel(nm) for nm in names}
+    for nm, c in parsed.items():
+        if c.kind == "ranging" and c.other not in index:
+            close = difflib.get_close_matches(c.other, copters, n=1)
+            hint = f" (did you mean 'ranging/{close[0]}'?)" if close else ""
+            raise RecordingError(f"readings: channel {nm!r} ranges to {c.other!r}, which has no tracking{hint}; "
+                                 f"tracked copters: {', '.join(copters)}")
+    kind_of = {nm: KIND_NAMES.index(c.kind) for nm, c in parsed.items()}
+    slot_of = {nm: (c.index if c.kind == "ultrasonic" else index[c.other] if c.kind == "ranging" else c.axis)
+               for nm, c in parsed.items()}
+    rci = np.array([index[c] for c in rnames], dtype=np.int64)[rcode]
+    stream_key = rci * len(names) + chi
+    keys, stream = np.unique(stream_key, return_inverse=True)
+    stream_names = [f"{copters[k // len(names)]}:{names[k % len(names)]}" for k in keys]
+    order = np.argsort(stream, kind="stable")
+    rows = order.copy()
+    stream, rt, val, rci, chi = stream[order], rt[order], val[order], rci[order], chi[order]
+    _increasing(stream, rt, "readings", "stream", stream_names, rows)
+    step = _median_interval(stream, rt)
+    if step >= MS_INTERVAL:
+        raise RecordingError(f"readings: the median interval between a stream's readings is {fmt(step)}; that looks "
+                             "like milliseconds (sensors record at 5-200 Hz): convert t to seconds")
+    kinds = np.array([kind_of[nm] for nm in names], dtype=np.int64)[chi]
+    slots = np.array([slot_of[nm] for nm in names], dtype=np.int64)[chi]
+    self_range = (kinds == KIND_RANGING) & (slots == rci)
+    if self_range.any():
+        i = int(np.argmax(self_range))
+        raise RecordingError(f"readings: copter {copters[rci[i]]!r} has a ranging channel to itself at row {rows[i]}; "
+                             "expected ranging/<another copter> (the diagonal of ranging is 0 by definition)")
+    return CheckedRecording(copters, ci, t, x, y, yaw, rci, kinds, slots, rt, val, stream, stream_names, dropped)
+
+
+def _check_yaw(ci, t, yaw):
+    """Yaw in degrees: beyond 2π in magnitude, and either mostly beyond it (a heading in degrees almost always is)
+    or turning faster than 20 per second at the 90th percentile (20 rad/s is over three turns a second, common in
+    degrees). Wrap jumps (2π or 360) are not turns."""
+    top = float(np.max(np.abs(yaw))) if yaw.size else 0.0
+    if top <= 2 * math.pi + 1e-9:
+        return
+    same = ci[1:] == ci[:-1]
+    d = np.abs(np.diff(yaw))[same]
+    dt = np.diff(t)[same]
+    turn = ~((np.abs(d - 2 * math.pi) < 0.5) | (np.abs(d - 360.0) < 5.0))
+    rate = d[turn] / dt[turn]
+    p90 = float(np.quantile(rate, 0.9)) if rate.size else 0.0
+    med = float(np.median(np.abs(yaw)))
+    if med > 2 * math.pi or p90 > 20.0:
+        raise RecordingError(f"tracking: yaw reaches {fmt(top)} (median |yaw| {fmt(med)}, 90th-percentile turn rate "
+                             f"{fmt(p90)} per s); that looks like degrees: convert yaw to radians (counter-clockwise "
+                             "from +x); if it is radians accumulated over many turns, wrap it to [-pi, pi)")
