@@ -419,8 +419,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_gap(sub)
     _add_gap_validate(sub)
     _add_check(sub)
+    from .importing.cli import add_parser as add_import
     from .tune.cli import add_parser as add_tune  # optuna is imported only when the command runs
 
+    add_import(sub)
     add_tune(sub)
     return parser
 

@@ -11,11 +11,9 @@ from __future__ import annotations
 from typing import Iterable, Mapping
 
 import numpy as np
-from scipy import stats
 
 from ..config import Config
 from ..metrics import episode_metrics
-from ..swarm import SwarmSim, needs_sensors
 
 __all__ = ["evaluate", "mean_ci", "compare", "CI_LEVEL"]
 
@@ -25,6 +23,8 @@ CI_LEVEL = 0.95
 def evaluate(cfg: Config, n_envs: int, seed: int, duration: float, metrics: Iterable[str]) -> dict[str, np.ndarray]:
     """Metrics (name -> (B,) float64) of ``n_envs`` episodes of ``duration`` s of ``cfg``, environments
     0 … B − 1 of ``seed``: one compiled batched rollout."""
+    from ..swarm import SwarmSim, needs_sensors  # the engine loads when a trial runs, not with the CLI
+
     sim = SwarmSim(cfg, sensors=needs_sensors(cfg.behaviour.kind))
     n_steps = max(1, int(round(duration / cfg.simulation.dt)))
     final, rec = sim.rollout(sim.init(n_envs=int(n_envs), seed=int(seed)), n_steps, record=("pose",))
@@ -41,6 +41,8 @@ def mean_ci(x, level: float = CI_LEVEL) -> tuple[float, float, float]:
     m = float(x.mean())
     if x.size < 2:
         return m, float("nan"), float("nan")
+    from scipy import stats
+
     half = float(stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
     return m, m - half, m + half
 
