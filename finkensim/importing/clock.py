@@ -64,8 +64,12 @@ def _pick_rows(ch, kind, max_offset, span, rng):
     """Row indices of usable readings of one kind, inside the tracking span for every candidate offset."""
     sel = (ch.rd_kind == kind) & np.isfinite(ch.rd_value) & (ch.rd_value > 0)
     if kind == KIND_ULTRASONIC and sel.any():
+        # no echo: drivers write the range limit (exactly, or clipped noise around it); a pile-up of readings
+        # within 2 % of the largest one is that, and those readings say nothing about the time
         top = np.max(ch.rd_value[sel])
-        sel &= ch.rd_value < 0.95 * top  # no echo: whatever the driver writes at the range limit
+        at_top = sel & (ch.rd_value >= 0.98 * top)
+        if at_top.sum() >= 0.02 * sel.sum():
+            sel &= ~at_top
     sel &= (ch.rd_t - max_offset > span[0]) & (ch.rd_t + max_offset < span[1])
     rows = np.flatnonzero(sel)
     if rows.size > MAX_READINGS:
@@ -169,13 +173,13 @@ def estimate_offset(ch, poses, geometry: dict, max_offset: float = 2.0, sample_p
         raise RecordingError(f"max_offset = {max_offset!r}: expected a positive number of seconds")
     rng = np.random.default_rng(seed)
     span = poses.span
-    rows = _pick_rows(ch, KIND_ULTRASONIC, max_offset, span, rng) if geometry.get("sonar_yaw") is not None else []
-    method = "ultrasonic"
+    sonar = _pick_rows(ch, KIND_ULTRASONIC, max_offset, span, rng) if geometry.get("sonar_yaw") is not None else []
+    rows, method = sonar, "ultrasonic"
     if len(rows) < MIN_READINGS:
         rows, method = _pick_rows(ch, KIND_RANGING, max_offset, span, rng), "ranging"
     if len(rows) < MIN_READINGS:
-        raise _refuse(f"only {len(rows)} sonar or ranging readings lie at least {max_offset:g} s inside the tracked "
-                      f"time span (at least {MIN_READINGS} needed)")
+        raise _refuse(f"only {len(sonar)} sonar readings with an echo and {len(rows)} ranging readings lie at least "
+                      f"{max_offset:g} s inside the tracked time span (at least {MIN_READINGS} of one kind needed)")
     ideal = _sonar_ideal(ch, poses, rows, geometry) if method == "ultrasonic" else _ranging_ideal(ch, poses, rows)
     values = ch.rd_value[rows]
     if sample_period is None:
