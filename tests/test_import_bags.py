@@ -226,3 +226,12 @@ def test_rosbag2_cli_auto_offset_diagnoses_clean(exported):
     assert abs(flight.meta["import"]["clock_offset"]["seconds"] - 0.3) < 0.05
     verdict = fs.diagnose([flight], ["bag"], cfg).to_spec()["verdict"]
     assert not verdict["significant_gap"], verdict
+
+
+def test_example_topics_file_parses():
+    from pathlib import Path
+
+    spec = parse_topics(Path(__file__).resolve().parent.parent / "examples" / "topics.toml")
+    by = {e.topic: e for e in spec.entries}
+    assert by["/cf2/uwb"].scale == 0.001 and by["/cf2/uwb"].time == "receive" and by["/cf2/uwb"].field == "distance_mm"
+    assert by["/cf1/sonar/left"].channels == ("ultrasonic/1",)

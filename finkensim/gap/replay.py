@@ -97,7 +97,7 @@ class Flight:
 
 
 @njit(cache=True)
-def _replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
+def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
     """Plate angles theta_out (T, S) rad of walls driven by logged positions pos (T, N, 2), as in a
     simulation (sample k holds the plates after responding to the positions of samples 1 … k), and each
     plate's distance to the nearest copter body dist_out (T, S) m."""
@@ -147,7 +147,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         yaw = np.ascontiguousarray(log.pose[:, :, 2], dtype=float)
         theta = np.empty((t.size, arena.n_plates))
         plate_distance = np.empty((t.size, arena.n_plates))
-        _replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
+        replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
         sx = cfg.gap.tracking_sigma_xy if cfg.gap.tracking_sigma_xy >= 0 else float(meta.get("tracking_sigma_xy", 0.0) or 0.0)
         sy = cfg.gap.tracking_sigma_yaw if cfg.gap.tracking_sigma_yaw >= 0 else float(meta.get("tracking_sigma_yaw", 0.0) or 0.0)
         first = 10  # history for finite differences and smoothing windows

@@ -12,10 +12,17 @@ printed and written into the log's ``meta["import"]``.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from pathlib import Path
 
 __all__ = ["add_parser", "run"]
+
+EXIT_USAGE = 2
+
+
+class _Usage(Exception):
+    """Bad input: printed as one line ``finkensim import: error: ...``, exit code 2."""
 
 
 def add_parser(sub) -> None:
@@ -58,80 +65,97 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _floats(prog, flag, text, n=None):
-    from ..cliargs import UsageError
-
+def _floats(flag, text, n=None):
     try:
         vals = [float(x) for x in str(text).split(",")]
     except ValueError:
-        raise UsageError(prog, f"{flag} {text!r}: expected comma-separated numbers") from None
+        raise _Usage(f"{flag} {text!r}: expected comma-separated numbers") from None
     if n is not None and len(vals) != n:
-        raise UsageError(prog, f"{flag} {text!r}: expected {n} comma-separated numbers, got {len(vals)}")
+        raise _Usage(f"{flag} {text!r}: expected {n} comma-separated numbers, got {len(vals)}")
     if not all(math.isfinite(v) for v in vals):
-        raise UsageError(prog, f"{flag} {text!r}: expected finite numbers")
+        raise _Usage(f"{flag} {text!r}: expected finite numbers")
     return vals
 
 
-def _recording(prog, args):
-    from ..cliargs import UsageError
+def _recording(args):
     from .csvtables import read_csv
 
     if args.bag is not None:
         if args.tracking or args.readings:
-            raise UsageError(prog, "give either --bag (with --topics) or --tracking/--readings, not both")
+            raise _Usage("give either --bag (with --topics) or --tracking/--readings, not both")
         if args.topics is None:
-            raise UsageError(prog, "--bag needs --topics TOPICS.toml (which topic is which copter's channel)")
+            raise _Usage("--bag needs --topics TOPICS.toml (which topic is which copter's channel)")
         try:
             from .bags import read_bag
         except ImportError as exc:
-            raise UsageError(prog, f"reading bags needs the [import] extra ({exc}): pip install 'finkensim[import]'") \
+            raise _Usage(f"reading bags needs the [import] extra ({exc}): pip install 'finkensim[import]'") \
                 from None
         return read_bag(args.bag, args.topics)
     if args.tracking is None:
-        raise UsageError(prog, "an input is required: --tracking TRACK.csv [--readings READ.csv], or --bag FILE "
+        raise _Usage("an input is required: --tracking TRACK.csv [--readings READ.csv], or --bag FILE "
                                "--topics TOPICS.toml")
     return read_csv(args.tracking, args.readings)
 
 
 def run(args) -> int:
     """Run ``finkensim import`` with parsed ``args``; returns the exit code."""
+    prog = getattr(args, "prog", "finkensim import")
+    try:
+        return _run(prog, args)
+    except _Usage as exc:
+        print(f"{prog}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def _scenario(path: str):
+    from ..config import ConfigError
+    from ..scenario import load_scenario
+
+    p = Path(path)
+    if not p.is_file():
+        raise _Usage(f"--config {path!r}: " + ("is not a file" if p.exists() else "does not exist"))
+    try:
+        return load_scenario(p)
+    except (ConfigError, UnicodeDecodeError, OSError) as exc:
+        raise _Usage(f"--config {path}: {exc}") from None
+
+
+def _run(prog, args) -> int:
     import numpy as np
 
-    from ..cliargs import UsageError, load_scenario_arg
     from ..config import ConfigError
     from ..flightlog import DEFAULT_COPTER_RADIUS, FlightLogError, save
     from .align import build_flight
 
-    prog = getattr(args, "prog", "finkensim import")
     t_start = time.perf_counter()
-    W, L = _floats(prog, "--arena", args.arena, 2)
+    W, L = _floats("--arena", args.arena, 2)
     if not (W > 0 and L > 0):
-        raise UsageError(prog, f"--arena {args.arena!r}: expected a positive width and length in m")
-    yaw = np.radians(_floats(prog, "--sonar-yaw-deg", args.sonar_yaw_deg)) if args.sonar_yaw_deg else None
+        raise _Usage(f"--arena {args.arena!r}: expected a positive width and length in m")
+    yaw = np.radians(_floats("--sonar-yaw-deg", args.sonar_yaw_deg)) if args.sonar_yaw_deg else None
     clock = args.clock_offset
     if clock != "auto":
         try:
             clock = float(clock)
         except ValueError:
-            raise UsageError(prog, f"--clock-offset {args.clock_offset!r}: expected 'auto' or a number of seconds") \
+            raise _Usage(f"--clock-offset {args.clock_offset!r}: expected 'auto' or a number of seconds") \
                 from None
-    cfg = load_scenario_arg(prog, args.config) if args.config else None
+    cfg = _scenario(args.config) if args.config else None
     radius = args.copter_radius
     if radius is None:
         radius = cfg.copters.radius if cfg is not None else DEFAULT_COPTER_RADIUS
     out = Path(args.out)
     if not str(args.out).strip() or out.is_dir():
-        raise UsageError(prog, f"--out {args.out!r}: expected a file name for the flight log")
+        raise _Usage(f"--out {args.out!r}: expected a file name for the flight log")
     if not out.parent.exists():
-        raise UsageError(prog, f"--out {args.out!r}: directory {str(out.parent)!r} does not exist")
+        raise _Usage(f"--out {args.out!r}: directory {str(out.parent)!r} does not exist")
     try:
-        rec = _recording(prog, args)
+        rec = _recording(args)
         log = build_flight(rec, arena=(W, L), sonar_yaw=yaw, sonar_offset=args.sonar_offset, copter_radius=radius,
                            altitude=args.altitude, clock_offset=clock, rate=args.rate, max_offset=args.max_offset,
                            config=cfg)
         save(log, out)
     except (FlightLogError, ConfigError) as exc:
-        raise UsageError(prog, str(exc)) from None
+        raise _Usage(str(exc)) from None
     imp = log.meta["import"]
     c = imp["clock_offset"]
     unc = f" ± {c['uncertainty']:.4f}" if "uncertainty" in c else ""
