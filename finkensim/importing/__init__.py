@@ -12,6 +12,7 @@ base and interpolates the poses to it (:mod:`.align`, :mod:`.poses`). :func:`to_
 from __future__ import annotations
 
 from .align import build_flight, place_readings
+from .bags import read_bag, write_bag
 from .clock import ClockEstimate, ClockOffsetError, estimate_offset
 from .csvtables import read_csv
 from .export import to_recording, write_csv
@@ -20,4 +21,4 @@ from .recording import (IMU_CHANNELS, READING_COLUMNS, TRACKING_COLUMNS, Recordi
 
 __all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "read_csv",
            "build_flight", "place_readings", "check_recording", "parse_channel", "estimate_offset", "ClockEstimate",
-           "ClockOffsetError", "to_recording", "write_csv"]
+           "ClockOffsetError", "to_recording", "write_csv", "read_bag", "write_bag"]
