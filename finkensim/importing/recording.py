@@ -182,10 +182,15 @@ def _increasing(stream, t, table, label, names, rows):
             "increasing time (sort them by time; remove duplicated samples)")
 
 
-def _median_interval(stream, t):
-    same = stream[1:] == stream[:-1]
-    d = np.diff(t)[same]
-    return float(np.median(d)) if d.size else math.nan
+def _check_times(stream, t, table, label, names, rows, rates):
+    """Strictly increasing times within each stream (:func:`_increasing`), and a median interval below
+    :data:`MS_INTERVAL` (else the times look like milliseconds; ``rates`` says what is usual)."""
+    _increasing(stream, t, table, label, names, rows)
+    d = np.diff(t)[stream[1:] == stream[:-1]]
+    step = float(np.median(d)) if d.size else math.nan
+    if step >= MS_INTERVAL:
+        raise RecordingError(f"{table}: the median interval between a {label}'s samples is {fmt(step)}; that looks "
+                             f"like milliseconds ({rates}): convert t to seconds")
 
 
 def check_recording(rec: Recording) -> CheckedRecording:
@@ -209,11 +214,7 @@ def check_recording(rec: Recording) -> CheckedRecording:
     order = np.argsort(ci, kind="stable")
     rows = np.arange(ci.size)[order]
     ci, t, x, y, yaw = ci[order], t[order], x[order], y[order], yaw[order]
-    _increasing(ci, t, "tracking", "copter", copters, rows)
-    step = _median_interval(ci, t)
-    if step >= MS_INTERVAL:
-        raise RecordingError(f"tracking: the median interval between a copter's poses is {fmt(step)}; that looks "
-                             "like milliseconds (tracking systems record at 50-500 Hz): convert t to seconds")
+    _check_times(ci, t, "tracking", "copter", copters, rows, "tracking systems record at 50-500 Hz")
     _check_yaw(ci, t, yaw)
 
     n = len(rd)
@@ -247,11 +248,7 @@ def check_recording(rec: Recording) -> CheckedRecording:
     order = np.argsort(stream, kind="stable")
     rows = order.copy()
     stream, rt, val, rci, chi = stream[order], rt[order], val[order], rci[order], chi[order]
-    _increasing(stream, rt, "readings", "stream", stream_names, rows)
-    step = _median_interval(stream, rt)
-    if step >= MS_INTERVAL:
-        raise RecordingError(f"readings: the median interval between a stream's readings is {fmt(step)}; that looks "
-                             "like milliseconds (sensors record at 5-200 Hz): convert t to seconds")
+    _check_times(stream, rt, "readings", "stream", stream_names, rows, "sensors record at 5-200 Hz")
     kinds = np.array([kind_of[nm] for nm in names], dtype=np.int64)[chi]
     slots = np.array([slot_of[nm] for nm in names], dtype=np.int64)[chi]
     self_range = (kinds == KIND_RANGING) & (slots == rci)
