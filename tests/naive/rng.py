@@ -9,6 +9,13 @@ indices are reinterpreted as uint64 (two's complement), as ``np.uint64(i)`` does
     normal(key, i)  = sqrt(−2 ln uniform(key, 2i)) · cos(2π · uniform(key, 2i + 1))
 
 with G the golden-ratio constant and ``mix`` SplitMix64's finaliser.
+
+What this twin can and cannot catch: the formulas above are the generator's specification (the documented random
+number layout), so this file necessarily restates them — vectorised over uint64 arrays where the kernel works on
+scalars — and catches numba-vs-NumPy drift and layout slips (a wrong index, a missing ½ ulp). It cannot tell whether
+``mix`` is SplitMix64 at all: that is checked against an outside reference, the published SplitMix64 outputs for
+seed 1234567 (``tests/test_rng.py::test_mix64_is_splitmix64_by_published_vectors``), and the uniform/normal
+distributions against scipy (KS tests in the same file).
 """
 from __future__ import annotations
 
