@@ -478,3 +478,42 @@ def test_conditional_pdf_integrates_to_cdf(mix):
     r = mix.responsibilities(np.array([[0.3, 1.0], [1.5, 2.4]]))
     assert r.shape == (2, 2, 100)
     np.testing.assert_allclose(r.sum(-1), 1.0)
+
+
+# ---------------------------------------------------------------- known answers straight from the data file
+
+def _conditional_from_json(x):
+    """(weights (K,), means (K,), stds (K,)) of the reading given true distance x (m), computed with scipy straight
+    from finkensim/data/vranging_gmm_m.json — not through Mixture: component k's weight is w_k·N(x; mean_k, covar_k)
+    normalised, and the reading within it is N(cond_mean_k, cond_covar_k) (diagonal covariances: no slope)."""
+    import json
+    from pathlib import Path
+
+    import finkensim
+
+    d = json.loads((Path(finkensim.__file__).parent / "data" / "vranging_gmm_m.json").read_text())
+    w = np.asarray(d["weights"]) * stats.norm.pdf(x, np.asarray(d["mean"]), np.sqrt(np.asarray(d["covar"])))
+    return w / w.sum(), np.asarray(d["cond_mean"]), np.sqrt(np.asarray(d["cond_covar"]))
+
+
+@pytest.mark.parametrize("x", [0.5, 1.2, 2.0])
+def test_sampler_matches_the_mixture_computed_from_the_json(models, x):
+    """KS of the kernel's draws against the conditional CDF Σ r_k Φ((y − μ_k)/σ_k) (clipped at 0) from the JSON with
+    scipy, and its mean/std against the closed-form moments within 5 standard errors."""
+    r, mu, sd = _conditional_from_json(x)
+    y = models["mixture"].sample(np.full(40_000, x), seed=11 + int(100 * x))
+
+    def cdf(v):
+        v = np.atleast_1d(v)
+        c = (r * stats.norm.cdf((v[:, None] - mu) / sd)).sum(axis=1)
+        return np.where(v < 0, 0.0, c)
+
+    assert stats.kstest(y, cdf).pvalue > 1e-3
+    mean = float((r * mu).sum())
+    var = float((r * (sd**2 + mu**2)).sum() - mean**2)
+    if np.mean(y == 0.0) < 1e-4:  # the clip at 0 is negligible here: the closed-form moments apply
+        c = mu - mean
+        m4 = float((r * (c**4 + 6 * c**2 * sd**2 + 3 * sd**4)).sum())  # fourth central moment of the mixture
+        se_m = np.sqrt(var / y.size)
+        se_s = np.sqrt((m4 - var**2) / (4 * var * y.size))  # delta method for the sample std
+        assert abs(y.mean() - mean) < 5 * se_m and abs(y.std() - np.sqrt(var)) < 5 * se_s
