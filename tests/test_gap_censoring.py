@@ -128,3 +128,25 @@ def test_shrink_never_exceeds_one(seed, scale, shift):
     meter = ShrinkMeter(base[0], base[1], ["s"], [other[0]])
     assert meter.shrink(*other) <= 1.0 + 1e-12
     assert meter.gap_after(*other) >= -1e-12 or meter.c0 <= 0
+
+
+# ------------------------------------------------------------------------- against scoringrules (independent)
+
+@pytest.mark.parametrize("seed", range(5))
+def test_crps_and_threshold_weighted_crps_equal_scoringrules(seed):
+    """finkensim's ensemble CRPS is the fair estimator and its censored score the threshold-weighted CRPS with
+    chaining v = clip(·, lo, hi): both equal scoringrules' implementations on random ensembles to rounding."""
+    sr = pytest.importorskip("scoringrules")
+    from finkensim.gap.censoring import Censoring
+    from finkensim.gap.scoring import crps_ensemble
+
+    rng = np.random.default_rng(seed)
+    n, M = 200, int(rng.integers(4, 40))
+    draws = rng.normal(1.5, 0.8, (n, M))
+    y = rng.normal(1.5, 1.0, n)
+    np.testing.assert_allclose(crps_ensemble(draws, y), sr.crps_ensemble(y, draws, estimator="fair"), rtol=0,
+                               atol=1e-12)
+    cens = Censoring(lo=0.3, hi=2.6)
+    ours = crps_ensemble(cens.draws(draws), cens.observed(y))
+    theirs = sr.twcrps_ensemble(y, draws, a=0.3, b=2.6, estimator="fair")
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12)

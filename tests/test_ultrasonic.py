@@ -382,7 +382,11 @@ def test_down_sonar():
     np.testing.assert_array_equal(down_readings(pos, sp, 0, [0, 1], 0), np.full((2, 3), 0.6))
     _, _, sp = setup(n=3)
     d = down_readings(np.zeros((500, 3, 2)), sp, 0, np.arange(500), 0)
-    assert np.all(d <= 0.6 + rayleigh_std(0.05)) and d.mean() < 0.6  # default runs short
+    assert np.all(d <= 0.6 + rayleigh_std(0.05))
+    # default: d = 0.6 − (R − s), so 0.6 − d + s ~ Rayleigh(σ), mean 0.6 − 0.5982σ (runs short), std s
+    assert stats.kstest(0.6 - d.ravel() + rayleigh_std(0.05), stats.rayleigh(scale=0.05).cdf).pvalue > 1e-3
+    se = rayleigh_std(0.05) / np.sqrt(d.size)  # 0.00085 m for 1500 readings
+    assert abs(d.mean() - (0.6 - (math.sqrt(math.pi / 2) * 0.05 - rayleigh_std(0.05)))) < 5 * se
 
 
 # ------------------------------------------------------------------ culled raycast (fast path) vs full search
