@@ -47,10 +47,9 @@ UNIT_FACTOR = 20.0
 def _stream_stats(ch, kind):
     """(median rate Hz, median jitter s) over the streams of one kind; NaN when there are none."""
     rates, jitter = [], []
-    sel = ch.rd_kind == kind
-    for s in np.unique(ch.rd_stream[sel]):
-        t = ch.rd_t[ch.rd_stream == s]
-        d = np.diff(t)
+    bounds = np.searchsorted(ch.rd_stream, np.arange(len(ch.stream_names) + 1))  # rows are grouped by stream
+    for s in np.unique(ch.rd_stream[ch.rd_kind == kind]):
+        d = np.diff(ch.rd_t[bounds[s]:bounds[s + 1]])
         if d.size:
             rates.append(1.0 / float(np.median(d)))
             jitter.append(float(np.std(d)))
