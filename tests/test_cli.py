@@ -1,6 +1,8 @@
 """`finkensim run` end to end, its error handling, and the scenario it runs by default."""
 from __future__ import annotations
 
+import math
+
 import os
 import subprocess
 import sys
@@ -109,7 +111,11 @@ def test_run_writes_valid_log_pictures_and_gif(tmp_path, capsys):
     assert np.all((log.ultrasonic >= 0.2) & (log.ultrasonic <= 3.0))
     np.testing.assert_array_equal(np.diagonal(log.ranging, axis1=1, axis2=2), 0.0)
     # the ideal values are the noise-free truth the readings scatter around
-    assert 0.0 < np.std(log.imu_gyro - log.extras["imu_gyro_ideal"]) < 0.01
+    # gyro error at step k = bias_k + white noise: Var = σ² + k·walk² (bias starts at 0), σ = density/√dt
+    imu, dt = log.meta["config"]["imu"], log.meta["config"]["simulation"]["dt"]
+    err = (log.imu_gyro - log.extras["imu_gyro_ideal"]).ravel()
+    want = math.sqrt(imu["gyro_noise_density"] ** 2 / dt + imu["gyro_bias_walk"] ** 2 * dt * (T - 1) / 2)
+    assert abs(err.std() - want) < 5 * want / math.sqrt(2 * err.size)  # 5 SE of a sample std (≈ 18 % here)
     assert np.median(np.abs(log.ranging - log.extras["ranging_ideal"])) < 0.3
 
     for name in ("arena.png", "wall_response.png", "sensors.png"):
