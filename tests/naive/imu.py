@@ -3,6 +3,11 @@
 Consumes the same counter-based normals (``normals_array``) as the kernel: per (seed, env, step,
 copter, STREAM_IMU) cell, normals 0-2 are the white noise (acc x, acc y, gyro), 3-5 the bias
 increments, 6-8 the turn-on bias.
+
+What it shares and why: the random-number layout above (which normal feeds which channel) is the model's definition,
+so the twin restates it; the noise law itself is checked against the analytic discretisation (white-noise std
+σ/√dt, bias std √(k·dt)·σ_b; ``tests/test_imu.py``, ``examples/sensor_stats.py`` with ``tests/test_readme_numbers.py``,
+and the CLI flight's gyro error in ``tests/test_cli.py``).
 """
 from __future__ import annotations
 

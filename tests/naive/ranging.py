@@ -5,6 +5,12 @@ Readable loops, no numba of its own. It consumes the same counter-based random n
 kernel, taken from ``finkensim.kernels.rng.uniforms_array`` / ``normals_array`` (one row of
 numbers per measuring copter), and the same responsibility table (``model.table``: node grid and
 alias tables), so it must agree with the kernel to rounding.
+
+What it shares and why: the alias table is the sampler's discretisation of the mixture, so replaying it here checks
+the kernel's indexing, interpolation between nodes and clipping — not whether the table samples the right law. That
+is checked without the table or ``Mixture``: the sampler against the conditional law computed straight from the
+JSON file with scipy (``tests/test_ranging.py::test_sampler_matches_the_mixture_computed_from_the_json``), and the
+table's total-variation bound against the exact responsibilities.
 """
 from __future__ import annotations
 
