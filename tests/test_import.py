@@ -144,11 +144,14 @@ def test_sonar_geometry_is_required_and_checked():
 
 
 @pytest.mark.parametrize("kw, match", [(dict(clock_offset="soon"), "expected 'auto' or a number"),
+                                       (dict(arena=(3,)), "expected \\(width, length\\)"),
+                                       (dict(arena=(3, -4)), "two positive numbers"),
                                        (dict(clock_offset=math.inf), "finite number"),
                                        (dict(clock_offset=0.0, rate=-5), "positive number of samples")])
 def test_bad_arguments(kw, match):
+    kw = {"arena": (3, 4), **kw}
     with pytest.raises(RecordingError, match=match):
-        build_flight(rec(), (3, 4), **kw)
+        build_flight(rec(), **kw)
 
 
 def test_csv_errors_name_file_column_and_line(tmp_path):

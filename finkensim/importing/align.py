@@ -146,7 +146,13 @@ def build_flight(rec, arena, *, sonar_yaw=None, sonar_offset: float | None = Non
             other arguments.
         seed: seed of the offset estimate's reading subsample and bootstrap.
     """
-    W, L = (float(a) for a in np.asarray(arena, dtype=np.float64).reshape(-1)[:2])
+    try:
+        a = np.asarray(arena, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        a = np.array([])
+    if a.size != 2 or not np.all(np.isfinite(a)) or not np.all(a > 0):
+        raise RecordingError(f"arena = {arena!r}: expected (width, length), two positive numbers of metres")
+    W, L = float(a[0]), float(a[1])
     ch = check_recording(rec)
     _units(ch, (W, L))
     n_copters = len(ch.copters)
@@ -158,6 +164,8 @@ def build_flight(rec, arena, *, sonar_yaw=None, sonar_offset: float | None = Non
             raise RecordingError(f"the readings have ultrasonic channels but {missing} is not given (--sonar-yaw-deg / "
                                  "--sonar-offset): the diagnosis needs where each sonar looks and sits")
         sonar_yaw = np.asarray(sonar_yaw, dtype=np.float64).reshape(-1)
+        if sonar_yaw.size == 0 or not np.all(np.isfinite(sonar_yaw)):
+            raise RecordingError(f"sonar_yaw = {sonar_yaw.tolist()!r}: expected one finite mounting yaw (rad) per sonar")
         S = sonar_yaw.size
         top = int(ch.rd_slot[ch.rd_kind == KIND_ULTRASONIC].max())
         if top >= S:
