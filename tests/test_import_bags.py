@@ -214,6 +214,8 @@ def test_every_format_imports_to_the_csv_flight(exported, kind):
     np.testing.assert_allclose(from_bag.ultrasonic, from_csv.ultrasonic.astype(np.float32), rtol=0, atol=0)
     np.testing.assert_array_equal(from_bag.ranging, from_csv.ranging)
     np.testing.assert_array_equal(from_bag.imu_gyro, from_csv.imu_gyro)
+    auto = _cli(log, d, ["--bag", str(bag), "--topics", str(d / f"{kind}.toml")], d / f"{kind}-auto.npz", offset="auto")
+    assert abs(auto.meta["import"]["clock_offset"]["seconds"] - 0.3) < 0.05  # within one sonar sample
 
 
 def test_rosbag2_cli_auto_offset_diagnoses_clean(exported):
