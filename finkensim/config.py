@@ -288,6 +288,7 @@ class GapConfig(_Section):
     unexplained_shrink: float = _f(0.7, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained'")
     tie_tolerance: float = _f(0.1, "", 0.0, 1.0, doc="effects whose held-out improvement is within this fraction of the best are near ties")
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")
+    imu_velocity_baseline: float = _f(0.2, "s", 0.0, 60.0, doc="velocities compared with the IMU are mean velocities over this baseline (divides tracking noise; at most gap.imu_window)")
     effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
 
 

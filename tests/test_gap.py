@@ -196,7 +196,8 @@ def test_ranging_draws_and_clearance_match_references():
         np.testing.assert_allclose(clear[k], r, rtol=1e-12)
 
 
-def test_imu_window_draws_match_reference():
+@pytest.mark.parametrize("b", [1, 3])
+def test_imu_window_draws_match_reference(b):
     rng = np.random.default_rng(8)
     T, N, h = 40, 3, 5
     t = np.cumsum(rng.uniform(0.04, 0.06, T))
@@ -204,9 +205,9 @@ def test_imu_window_draws_match_reference():
     yu = np.cumsum(rng.normal(scale=0.05, size=(T, N)), axis=0)
     times = np.array([10, 20, 39], dtype=np.int64)
     out = np.empty((3, N, 3, 1))
-    rp.imu_window_draws(pos, yu, t, times, h, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
+    rp.imu_window_draws(pos, yu, t, times, h, b, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
     for i, k in enumerate(times):
-        np.testing.assert_allclose(out[i, :, :, 0], naive.imu_windows(pos, yu, t, k, h), rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(out[i, :, :, 0], naive.imu_windows(pos, yu, t, k, h, b), rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize("err,flags,p_const,q_hear,scale,bias", [(0, 0, 0.0, 1.0, 1.0, 0.0), (1, 0, 0.0, 1.0, 1.1, 0.05),
@@ -367,3 +368,26 @@ def test_every_model_parameter_belongs_to_exactly_one_sensor_for_score_caching()
         assert base.sensor_key(sensor) == ModelParams.from_config(Config()).sensor_key(sensor) or sensor == "ranging"
     assert base.with_sonar(bias=0.1).sensor_key("ultrasonic") != base.sensor_key("ultrasonic")
     assert base.with_sonar(bias=0.1).sensor_key("imu") == base.sensor_key("imu")
+
+
+@pytest.mark.parametrize("baseline", [0.0, 0.2])
+def test_imu_table_equals_the_pose_derived_ideal_on_a_noise_free_flight(baseline):
+    """With no IMU noise and no tracking noise, each window integral of the logged IMU (trapezoid weights
+    for the accelerometer) equals the Δ of mean velocities over the baseline computed from the poses: the two
+    sides of the IMU comparison describe the same quantity, whatever the baseline."""
+    from finkensim.config import load_config
+    from finkensim.gap.diagnose import Diagnosis
+    from finkensim.scenario import simulate_flight
+    cfg = load_config().replace({"copters.n": 3, "imu.acc_noise_density": 0.0, "imu.acc_bias_walk": 0.0,
+                                 "imu.gyro_noise_density": 0.0, "imu.gyro_bias_walk": 0.0,
+                                 "gap.imu_velocity_baseline": baseline, "gap.draws": 4,
+                                 "gap.max_samples_per_flight": 200})
+    logs = [simulate_flight(cfg, duration=8.0, seed=s)[0] for s in (3, 4)]
+    diag = Diagnosis(logs, ["a.npz", "b.npz"], cfg)
+    tab = diag.tables["imu"]
+    assert tab.baseline == (1 if baseline == 0 else round(baseline / cfg.simulation.dt))
+    rows = np.arange(tab.n)
+    D, _ = tab.draws(diag.flights, diag.base.with_(sigma_xy=0.0, sigma_yaw=0.0), rows, diag.seed, 4)
+    ok = np.isfinite(tab.y)
+    assert ok.mean() > 0.99
+    np.testing.assert_allclose(D[ok], np.broadcast_to(tab.y[ok, None], D[ok].shape), atol=1e-9)

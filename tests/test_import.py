@@ -302,6 +302,22 @@ def test_round_trip_with_a_late_offset_names_latency(simulated):
     assert verdict["significant_gap"] and verdict["effect"] == "latency", verdict
 
 
+def test_round_trip_with_an_early_offset_names_a_negative_latency(simulated):
+    """Readings placed one sonar sample too early describe the world after their time stamp: ``latency``
+    with a negative lag of the delayed sensors (not pose noise, which widens instead of shifting)."""
+    import finkensim as fs
+
+    cfg, log = simulated
+    rec_ = to_recording(log, clock_offset=TRUE_OFFSET, seed=1)
+    wrong = build_flight(rec_, log.arena, sonar_yaw=log.ultrasonic_yaw, sonar_offset=log.ultrasonic_offset,
+                         copter_radius=log.meta["copter_radius"], altitude=log.meta["altitude"],
+                         clock_offset=TRUE_OFFSET - 0.05)
+    rep = fs.diagnose([wrong], ["early offset"], cfg).to_spec()
+    assert rep["verdict"]["significant_gap"] and rep["verdict"]["effect"] == "latency", rep["verdict"]
+    lat = next(e for e in rep["effects"] if e["name"] == "latency")["params"]
+    assert -0.06 <= lat["ultrasonic"] <= -0.04, lat
+
+
 def test_cli_errors_are_one_line(tmp_path):
     base = [sys.executable, "-m", "finkensim.cli", "import"]
     cases = [

@@ -157,8 +157,9 @@ class Diagnosis:
                 part = "training" if tr_rows.size == 0 else "held-out"
                 why = ""
                 if s == "imu":
-                    w = self.cfg.gap.imu_window
-                    why = (f"; an IMU reading integrates gap.imu_window = {w:g} s of a flight, so each {part} flight "
+                    w, bl = self.cfg.gap.imu_window, self.cfg.gap.imu_velocity_baseline
+                    why = (f"; an IMU reading integrates gap.imu_window = {w:g} s of a flight (after "
+                           f"gap.imu_velocity_baseline = {bl:g} s), so each {part} flight "
                            f"(or half of a single flight) must be longer than that: use longer flights or a smaller "
                            f"gap.imu_window")
                 raise GapInputError(f"{s}: no readings in the {part} flights{why}")
@@ -460,4 +461,28 @@ def _fit_pose_noise(diag: Diagnosis, effect, current, vals):
     return v
 
 
-_CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
+def _fit_latency(diag: Diagnosis, effect, current, vals):
+    """Per sensor, a search over whole log samples between the bounds (s): every ``stride``-th lag first
+    (about 16 candidates), then each lag within ``stride`` of the best. The CRPS uses common random numbers, so
+    it is a deterministic function of the lag; the refinement catches a minimum between coarse points."""
+    dt = min(f.dt for f in diag.flights)
+    out = dict(vals)
+    for prm in effect.params:
+        if prm.name not in diag.tables:
+            continue
+        f = lambda k: diag._objective(effect, current, [prm.name], {**out, prm.name: k * dt})  # noqa: E731
+        lo, hi = math.ceil(prm.lo / dt - 1e-9), math.floor(prm.hi / dt + 1e-9)
+        stride = max(1, (hi - lo) // 16)
+        start = int(round(out[prm.name] / dt))
+        scores = {k: f(k) for k in sorted(set(range(0, hi + 1, stride)) | set(range(0, lo - 1, -stride)) | {start})
+                  if lo <= k <= hi}
+        best = min(scores, key=scores.get)
+        for k in range(max(lo, best - stride + 1), min(hi, best + stride - 1) + 1):
+            if k not in scores:
+                scores[k] = f(k)
+        best = min(scores, key=lambda k: (scores[k], abs(k)))
+        out[prm.name] = best * dt
+    return out
+
+
+_CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

@@ -143,11 +143,12 @@ register(Effect(
     initial=lambda b: {"factor": 1.0}, expected_features=("true_range",)))
 register(Effect(
     "latency", ("ultrasonic", "ranging", "imu"),
-    (Param("ultrasonic", 0, 10, integer=True, unit="steps"), Param("ranging", 0, 10, integer=True, unit="steps"),
-     Param("imu", 0, 10, integer=True, unit="steps")),
-    lambda b, v: b.with_(latency_sonar=int(v["ultrasonic"]), latency_ranging=int(v["ranging"]),
-                         latency_imu=int(v["imu"])),
-    doc="readings describe the world some steps earlier (per sensor)",
+    (Param("ultrasonic", -0.5, 1.0, unit="s"), Param("ranging", -0.5, 1.0, unit="s"),
+     Param("imu", -0.5, 1.0, unit="s")),
+    lambda b, v: b.with_(latency_sonar=float(v["ultrasonic"]), latency_ranging=float(v["ranging"]),
+                         latency_imu=float(v["imu"])),
+    doc="readings describe the world some time earlier (per sensor, s; negative: later, a clock offset set too "
+        "early); searched in whole samples of the log",
     initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
     expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
 register(Effect(

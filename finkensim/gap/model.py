@@ -41,8 +41,8 @@ class ModelParams:
     plate displacement (1 with bending walls, 0 with rigid ones). bulge_amplitude m, bulge_reach m: an extra
     displacement ``amplitude · exp(−(d/reach)²)`` of each plate toward the arena, d its distance to the nearest
     copter body (the ``wall_bulge`` effect). beam_rays: rays of a cone beam when an
-    effect widens a single-ray beam. latency_* steps: readings describe the world that many log steps
-    earlier. nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
+    effect widens a single-ray beam. latency_* s: readings describe the world that much earlier (negative:
+    later, as after a clock offset that was too early); each flight applies it as whole log steps (:func:`lag_steps`). nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
     copter is near the line of sight. dropout_a, dropout_b 1/m: a ranging reading is missing with
     probability sigmoid(a + b·distance) (a = −inf: never). acc_bias_x, acc_bias_y m/s², gyro_bias rad/s:
     constant body-frame IMU biases.
@@ -57,16 +57,16 @@ class ModelParams:
     bulge_amplitude: float = 0.0
     bulge_reach: float = 0.3
     beam_rays: int = 7
-    latency_sonar: int = 0
+    latency_sonar: float = 0.0
     nlos_bias: float = 0.0
     nlos_width: float = 0.2
     dropout_a: float = -math.inf
     dropout_b: float = 0.0
-    latency_ranging: int = 0
+    latency_ranging: float = 0.0
     acc_bias_x: float = 0.0
     acc_bias_y: float = 0.0
     gyro_bias: float = 0.0
-    latency_imu: int = 0
+    latency_imu: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: Config) -> "ModelParams":
@@ -142,3 +142,9 @@ def gaussian_draws(ideal, flight, tidx, chan, seed, sd, bias, out):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
         for m in range(M):
             out[i, m] = ideal[i, m] + bias[i] + sd[i] * normal(key, m)
+
+
+def lag_steps(seconds: float, dt: float) -> int:
+    """A latency of ``seconds`` as whole samples of a log with sample period ``dt`` s (nearest; ties away from 0)."""
+    x = seconds / dt
+    return int(math.copysign(math.floor(abs(x) + 0.5), x))

@@ -17,7 +17,7 @@ from ..config import Config
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate, sonar_channel_names, speed, wall_distance
-from .model import ModelParams, gaussian_draws, sonar_reading_draws
+from .model import ModelParams, gaussian_draws, lag_steps, sonar_reading_draws
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -163,12 +163,12 @@ class SonarTable(Table):
             G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
         key = ("sonar", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9),
-               sp.ray_angles.tobytes(), p.latency_sonar, sp.schedule, sp.n_slots, sp.cos_half_angle, G,
+               sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range)
         hit = self.cache.get(key)
         if hit is not None:
             return hit
-        times = np.maximum(0, fl.samples[u] - p.latency_sonar)
+        times = np.clip(fl.samples[u] - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
@@ -252,10 +252,10 @@ class RangingTable(Table):
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
         G = geometry_draws(sx, 0.0, M)
-        key = ("ranging", fl.index, _rows_key(u), round(sx, 9), p.latency_ranging, G)
+        key = ("ranging", fl.index, _rows_key(u), round(sx, 9), lag_steps(p.latency_ranging, fl.dt), G)
         hit = self.cache.get(key)
         if hit is None:
-            times = np.maximum(0, fl.samples[u] - p.latency_ranging)
+            times = np.clip(fl.samples[u] - lag_steps(p.latency_ranging, fl.dt), 0, fl.t.size - 1)
             N = fl.n_copters
             out = np.empty((times.size, N, N, G))
             rp.ranging_draws(fl.pos, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
@@ -287,6 +287,13 @@ class RangingTable(Table):
         return 1.0 / (1.0 + np.exp(-z))
 
 
+def imu_steps(cfg: Config, dt: float) -> tuple[int, int]:
+    """(h, b): the IMU window ``gap.imu_window`` and the velocity baseline ``gap.imu_velocity_baseline`` as
+    whole samples of period dt s (each at least 1, b at most h)."""
+    h = max(1, int(round(cfg.gap.imu_window / dt)))
+    return h, min(h, max(1, int(round(cfg.gap.imu_velocity_baseline / dt))))
+
+
 class ImuTable(Table):
     """IMU readings integrated over a window of h steps (about ``gap.imu_window`` s):
     channels 0, 1 = Δv_x, Δv_y (m/s, world frame: each body-frame sample rotated by the logged
@@ -294,24 +301,29 @@ class ImuTable(Table):
     ideal free of smoothing bias and of 1/dt² noise amplification.
 
     Extra per-row arrays: ``bias_gain`` (n, 2) maps a body-frame accelerometer bias (b_x, b_y)
-    onto the row's channel (Σ R(ψ_j) dt_j row), and ``window_s`` (n,) the window length in s.
+    onto the row's channel (Σ w_j R(ψ_j) dt_j row), ``window_s`` (n,) the window length in s and ``noise_s``
+    (n,) Σ w_j² dt_j s (white-noise variance per unit density²). The accelerometer integrals carry trapezoid
+    weights w_j (see :func:`~finkensim.gap.replay.imu_window_draws`) so that the pose side can use mean
+    velocities over ``gap.imu_velocity_baseline`` instead of single-step differences of noisy poses.
     """
 
     window: int = 20
+    baseline: int = 1
     bias_gain: np.ndarray = None
     window_s: np.ndarray = None
+    noise_s: np.ndarray = None
 
     @classmethod
     def build(cls, flights, cfg: Config, seed: int):
         cols = {k: [] for k in ("y", "flight", "sample", "time", "copter", "channel", "sec", "sp", "wd", "am",
-                                "g0", "g1", "ws")}
+                                "g0", "g1", "ws", "ns")}
         any_ = False
         for f in flights:
             if f.log.imu_acc is None:
                 continue
             any_ = True
-            h = max(1, int(round(cfg.gap.imu_window / f.dt)))
-            samples = f.samples[f.samples >= h + 1]
+            h, b = imu_steps(cfg, f.dt)
+            samples = f.samples[f.samples >= h + b]
             if samples.size == 0:
                 continue
             N = f.n_copters
@@ -324,14 +336,20 @@ class ImuTable(Table):
             nan_acc = np.cumsum(~np.isfinite(ax) | ~np.isfinite(ay), axis=0)
             nan_g = np.cumsum(~np.isfinite(g), axis=0)
             win = lambda a: a[samples] - a[samples - h]  # noqa: E731  (K, N) sums over (k-h, k]
-            y = np.stack([win(wx), win(wy), win(wg)], axis=-1)
+            # Σ_{j=k-b+1..k} (W_j − W_{j−h}) / b: trapezoid weights matching mean velocities over b steps
+            S = lambda a: np.cumsum(a, axis=0)  # noqa: E731
+            trap = lambda a: (lambda c: (c[samples] - c[samples - b] - c[samples - h] + c[samples - h - b]) / b)(S(a))  # noqa: E731
+            y = np.stack([trap(wx), trap(wy), win(wg)], axis=-1)
             # a window with a missing sample has no integral: NaN (excluded), never silently filled
-            y[..., :2][win(nan_acc) > 0] = np.nan
+            y[..., :2][nan_acc[samples] - nan_acc[samples - h - b] > 0] = np.nan
             y[..., 2][win(nan_g) > 0] = np.nan
-            Cc, Cs = win(cc), win(ss)
+            Cc, Cs = trap(cc), trap(ss)
             g0 = np.stack([Cc, Cs, np.zeros_like(Cc)], axis=-1)  # coefficient of b_x per channel
             g1 = np.stack([-Cs, Cc, np.zeros_like(Cc)], axis=-1)  # coefficient of b_y per channel
             ws = np.broadcast_to((f.t[samples] - f.t[samples - h])[:, None, None], y.shape)
+            # Σ w_j² dt_j of white noise through the weights (uniform dt): the box's h for the gyro
+            sq = (h - b + 1 + (b - 1) * (2 * b - 1) / (3 * b)) / h
+            ns = ws * np.array([sq, sq, 1.0])
             pos_idx = np.searchsorted(f.samples, samples)
             kk, nn, ch = np.meshgrid(pos_idx, np.arange(N), np.arange(3), indexing="ij")
             ok = np.isfinite(y)
@@ -343,6 +361,7 @@ class ImuTable(Table):
             cols["g0"].append(g0[ok])
             cols["g1"].append(g1[ok])
             cols["ws"].append(ws[ok])
+            cols["ns"].append(ns[ok])
             for name, v in (("sp", sp), ("wd", wd), ("am", am)):
                 cols[name].append(np.broadcast_to(v[:, :, None], y.shape)[ok])
         if not any_ or not cols["y"]:
@@ -357,18 +376,19 @@ class ImuTable(Table):
                 seconds=c["sec"].astype(float))
         t.bias_gain = np.stack([c["g0"], c["g1"]], axis=-1).astype(float)
         t.window_s = c["ws"].astype(float)
-        t.window = max(1, int(round(cfg.gap.imu_window / flights[0].dt)))
+        t.noise_s = c["ns"].astype(float)
+        t.window, t.baseline = imu_steps(cfg, flights[0].dt)
         return t
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         sx, sy, G = pose_sigmas(p, fl, M)
-        h = self.window
-        key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), p.latency_imu, G, h)
+        h, b = self.window, self.baseline
+        key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), lag_steps(p.latency_imu, fl.dt), G, h, b)
         hit = self.cache.get(key)
         if hit is None:
-            times = np.maximum(h + 1, fl.samples[u] - p.latency_imu)
+            times = np.clip(fl.samples[u] - lag_steps(p.latency_imu, fl.dt), h + b, fl.t.size - 1)
             out = np.empty((times.size, fl.n_copters, 3, G))
-            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, fl.noise(sx, sy, seed), G, out)
+            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, b, fl.noise(sx, sy, seed), G, out)
             hit = self.cache.put(key, (out,))
         return hit
 
@@ -385,7 +405,7 @@ class ImuTable(Table):
         walk = np.where(ch == 2, gyro_walk, acc_walk)
         # Σ of h white samples (std density/√dt each) times dt = density²·window seconds, and a bias random
         # walk of std walk·sqrt(t) integrated over the window
-        sd = np.sqrt(density ** 2 * ws + (walk * ws) ** 2 * self.seconds[rows])
+        sd = np.sqrt(density ** 2 * self.noise_s[rows] + (walk * ws) ** 2 * self.seconds[rows])
         out = np.empty_like(ideal)
         gaussian_draws(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch,
                        seed, np.ascontiguousarray(sd), np.ascontiguousarray(bias), out)

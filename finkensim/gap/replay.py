@@ -434,14 +434,17 @@ def ranging_clearance(pos, times, out):
 # --------------------------------------------------------------------------------------- imu
 
 @njit(cache=True, parallel=True)
-def imu_window_draws(pos, yaw_unwrapped, t, times, h, noise, M, out):
+def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, out):
     """Window-integrated ideal IMU values for M pose draws: out (K, N, 3, M) =
-    (Δv_x, Δv_y) m/s world frame and Δψ rad over the h steps ending at each time in ``times``.
+    (Δv_x, Δv_y) m/s world frame and Δψ rad over the h steps ending at each time in ``times``
+    (each time ≥ h + b).
 
-    Δv = v_k − v_{k−h} with v_j = (p_j − p_{j−1}) / (t_j − t_{j−1}) is exactly Σ a_j dt_j of the
-    simulator's recorded accelerations, and Δψ = ψ_k − ψ_{k−h} is Σ ω_j dt_j: integrating the IMU
-    instead of differentiating the poses twice avoids amplifying tracking noise by 1/dt². noise:
-    :class:`PoseNoise`.
+    Δv = v̄_k − v̄_{k−h}, with v̄_j = (p_j − p_{j−b}) / (t_j − t_{j−b}) the mean velocity over a baseline of b
+    steps. On a uniform time base it is exactly Σ w_j a_j dt_j of the simulator's recorded accelerations with
+    trapezoid weights w (a box of h convolved with a box of b, divided by b; b = 1: the plain window sum),
+    and Δψ = ψ_k − ψ_{k−h} is Σ ω_j dt_j: integrating the IMU instead of differentiating the poses twice
+    avoids amplifying tracking noise by 1/dt², and the baseline divides the velocities' tracking noise by b.
+    noise: :class:`PoseNoise`.
     """
     K = times.shape[0]
     N = pos.shape[1]
@@ -451,13 +454,13 @@ def imu_window_draws(pos, yaw_unwrapped, t, times, h, noise, M, out):
         m = i % M
         k = times[ti]
         k0 = k - h
+        d1 = t[k] - t[k - b]
+        d0 = t[k0] - t[k0 - b]
         for n in range(N):
             x1, y1, w1 = _pose_draw(pos, yaw_unwrapped, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            x0, y0, _ = _pose_draw(pos, yaw_unwrapped, k - 1, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            x0, y0, _ = _pose_draw(pos, yaw_unwrapped, k - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
             a1, b1, w0 = _pose_draw(pos, yaw_unwrapped, k0, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            a0, b0, _ = _pose_draw(pos, yaw_unwrapped, k0 - 1, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            d1 = t[k] - t[k - 1]
-            d0 = t[k0] - t[k0 - 1]
+            a0, b0, _ = _pose_draw(pos, yaw_unwrapped, k0 - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
             out[ti, n, 0, m] = (x1 - x0) / d1 - (a1 - a0) / d0
             out[ti, n, 1, m] = (y1 - y0) / d1 - (b1 - b0) / d0
             out[ti, n, 2, m] = w1 - w0

@@ -66,13 +66,19 @@ def _post_sound_speed(k):
     return f
 
 
-def _post_latency(sensor, steps):
-    def shift(a):
-        out = a.copy()
-        out[steps:] = a[:-steps]
-        return out
-
+def _post_latency(sensor, seconds, truth):
+    """Delay one sensor's readings by ``seconds`` (whole log samples, at least one); ``truth[sensor]`` becomes
+    the delay actually applied (s). The lag is drawn in seconds so that its strength does not depend on the
+    logging rate of the conventions axis."""
     def f(log, cfg, rng):
+        steps = max(1, int(round(seconds / cfg.simulation.dt)))
+        truth[sensor] = steps * cfg.simulation.dt
+
+        def shift(a):
+            out = a.copy()
+            out[steps:] = a[:-steps]
+            return out
+
         if sensor == "ultrasonic":
             log.ultrasonic = shift(log.ultrasonic)
         elif sensor == "ranging":
@@ -168,8 +174,8 @@ CASES: dict[str, Case] = {
     "sound_speed": Case("sound_speed", "sound_speed", lambda r: (
         {}, _post_sound_speed(k := 1.0 + _sign(r) * float(r.uniform(0.06, 0.12))), {"factor": k}), "ultrasonic"),
     "latency": Case("latency", "latency", lambda r: (
-        {}, _post_latency(s := ("ultrasonic", "ranging", "imu")[int(r.integers(3))], L := int(r.integers(2, 6))),
-        {s: L, "_sensor": s})),
+        {}, _post_latency(s := ("ultrasonic", "ranging", "imu")[int(r.integers(3))], float(r.uniform(0.15, 0.4)),
+                          truth := {"_sensor": s}), truth)),
     "ranging_nlos": Case("ranging_nlos", "ranging_nlos", lambda r: (
         {"copters.n": 8}, ("nlos", b := float(r.uniform(0.2, 0.4)), w := float(r.uniform(0.15, 0.3))),
         {"bias": b, "width": w}), "ranging"),
@@ -288,8 +294,22 @@ def pair_case(a: str, b: str) -> Case:
         clash = sorted(k for k in ua.keys() & ub.keys() if ua[k] != ub[k])
         if clash:
             raise ValueError(f"pair {a!r} + {b!r}: both set {', '.join(clash)}")
-        truth = {f"{a}.{k}": v for k, v in ta.items()} | {f"{b}.{k}": v for k, v in tb.items()}
-        return {**ua, **ub}, [pa, pb], truth
+        truth = {}
+
+        def merge():  # a post-process may fill in its truth when it runs (the latency in whole samples)
+            truth.update({f"{a}.{k}": v for k, v in ta.items()} | {f"{b}.{k}": v for k, v in tb.items()})
+
+        def after(post):
+            if not callable(post):
+                return post
+
+            def run(log, cfg, rng):
+                post(log, cfg, rng)
+                merge()
+            return run
+
+        merge()
+        return {**ua, **ub}, [after(pa), after(pb)], truth
 
     return Case(f"{a}+{b}", a, make, None, effects=(a, b))
 

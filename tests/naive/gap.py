@@ -74,8 +74,9 @@ def clearance(pos):
     return out
 
 
-def imu_windows(pos, yaw_unwrapped, t, k, h):
-    """(N, 3): Δv_x, Δv_y (world) and Δψ over the h steps ending at sample k, from exact poses."""
-    v1 = (pos[k] - pos[k - 1]) / (t[k] - t[k - 1])
-    v0 = (pos[k - h] - pos[k - h - 1]) / (t[k - h] - t[k - h - 1])
+def imu_windows(pos, yaw_unwrapped, t, k, h, b=1):
+    """(N, 3): Δv_x, Δv_y (world) and Δψ over the h steps ending at sample k, from exact poses; velocities
+    are mean velocities over b steps."""
+    v1 = (pos[k] - pos[k - b]) / (t[k] - t[k - b])
+    v0 = (pos[k - h] - pos[k - h - b]) / (t[k - h] - t[k - h - b])
     return np.concatenate([v1 - v0, (yaw_unwrapped[k] - yaw_unwrapped[k - h])[:, None]], axis=1)
