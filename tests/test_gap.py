@@ -173,6 +173,30 @@ def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
     assert out[1.0] - reading(1.0, np.full_like(theta, 0.07)) == pytest.approx(0.07)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 40), st.integers(1, 5), st.floats(0.01, 3.0), st.integers(0, 2**32 - 1))
+def test_bulge_response_matches_the_exact_first_order_solution(T, S, tau, seed):
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.005, 0.2, T))
+    d = rng.uniform(0.0, 1.5, (T, S))
+    got = rp.bulge_displacement(d, 0.2, 0.4, tau, t)
+    np.testing.assert_allclose(got, naive.first_order_lag(0.2 * np.exp(-(d / 0.4) ** 2), t, tau), rtol=1e-12,
+                               atol=1e-15)
+
+
+def test_bulge_response_to_a_step_is_one_minus_an_exponential():
+    """A copter appears next to a plate at t = 0: the plate reaches A·(1 − e^(−t/τ)) — the known answer."""
+    dt, tau, A = 0.02, 0.5, 0.15
+    t = np.arange(101) * dt
+    d = np.full((101, 1), 50.0)
+    d[1:] = 0.0
+    x = rp.bulge_displacement(d, A, 0.3, tau, t)[:, 0]
+    np.testing.assert_allclose(x[1:], A * (1 - np.exp(-t[1:] / tau)), rtol=1e-12)
+    assert x[0] == pytest.approx(A * math.exp(-(50.0 / 0.3) ** 2), abs=1e-300)
+    with pytest.raises(ValueError, match="response"):
+        rp.bulge_displacement(d, A, 0.3, -1.0, t)
+
+
 def test_bulge_displacement_is_amplitude_times_a_gaussian_of_the_plate_distance():
     d = np.array([[0.0, 0.1, 0.3, 2.0]])
     np.testing.assert_allclose(rp.bulge_displacement(d, 0.12, 0.3), 0.12 * np.exp(-(d / 0.3) ** 2), rtol=1e-15)

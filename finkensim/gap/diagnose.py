@@ -342,8 +342,6 @@ class Diagnosis:
                 best = grid[j]
             return {**vals, prm.name: float(best)}
         # several continuous parameters: coarse grid, then Nelder–Mead inside the bounds
-        lo = np.array([q.lo for q in group])
-        hi = np.array([q.hi for q in group])
         axes = [np.linspace(q.lo, q.hi, 5) for q in group]
         best_x, best_f = np.array([vals[q.name] for q in group], float), None
         best_f = f(vals)
@@ -351,12 +349,7 @@ class Diagnosis:
             v = f({**vals, **{q.name: float(x) for q, x in zip(group, pt)}})
             if v < best_f:
                 best_f, best_x = v, pt
-        g = lambda x: f({**vals, **{q.name: float(c) for q, c in zip(group, np.clip(x, lo, hi))}})  # noqa: E731
-        r = optimize.minimize(g, best_x, method="Nelder-Mead",
-                              options={"maxfev": 40, "xatol": 1e-3, "fatol": 1e-6,
-                                       "initial_simplex": _simplex(best_x, (hi - lo) / 8, lo, hi)})
-        x = np.clip(r.x, lo, hi) if r.fun < best_f else best_x
-        return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
+        return _nelder_mead(f, vals, group, best_x, best_f)
 
     def score_heldout(self, res: FitResult, gap_before_parts=None):
         ev, rows = self.evaluate(res.params, "heldout")
@@ -367,6 +360,18 @@ class Diagnosis:
         evt, _ = self.evaluate(res.params, "fit")
         res.gap_train = float(np.mean([np.nanmean(g) for _, g in evt.values()]))
         return res
+
+
+def _nelder_mead(f, vals, group, x0, f0, maxfev=40):
+    """Nelder–Mead over the parameters ``group`` from x0 (objective f0 there), inside their bounds."""
+    lo = np.array([q.lo for q in group])
+    hi = np.array([q.hi for q in group])
+    g = lambda x: f({**vals, **{q.name: float(c) for q, c in zip(group, np.clip(x, lo, hi))}})  # noqa: E731
+    r = optimize.minimize(g, np.asarray(x0, float), method="Nelder-Mead",
+                          options={"maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-6,
+                                   "initial_simplex": _simplex(np.asarray(x0, float), (hi - lo) / 8, lo, hi)})
+    x = np.clip(r.x, lo, hi) if r.fun < f0 else np.asarray(x0, float)
+    return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
 
 
 def _simplex(x0, step, lo, hi):
@@ -485,4 +490,18 @@ def _fit_latency(diag: Diagnosis, effect, current, vals):
     return out
 
 
-_CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
+def _fit_bulge(diag: Diagnosis, effect, current, vals):
+    """Amplitude and reach first with the plates following at once (grid, then Nelder–Mead), then a few
+    response times with those fixed, then all three together from the best of them."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    amp, reach, resp = effect.params
+    v = diag._fit_group(effect, current, sensors, vals, [amp, reach])
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    cands = [{**v, "response": r} for r in sorted({v["response"], 0.0, 0.3, 0.8, 1.5})]
+    scores = [f(c) for c in cands]
+    i = int(np.argmin(scores))
+    best = cands[i]
+    return _nelder_mead(f, best, [amp, reach, resp], [best[q.name] for q in (amp, reach, resp)], scores[i])
+
+
+_CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

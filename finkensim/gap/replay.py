@@ -75,11 +75,12 @@ class Flight:
         """The flight as the sonar kernels see it: logged poses and replayed plate angles, no extra bulge."""
         return self.poses_with_bulge(0.0, 1.0)
 
-    def poses_with_bulge(self, amplitude: float, reach: float) -> "ReplayPoses":
+    def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0) -> "ReplayPoses":
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)²)`` m,
-        d its distance to the nearest copter body (the ``wall_bulge`` effect; amplitude m, reach m > 0)."""
+        d its distance to the nearest copter body, followed with time constant ``response`` s (the
+        ``wall_bulge`` effect; amplitude m, reach m > 0)."""
         return ReplayPoses(self.pos, self.yaw, self.theta_unit,
-                           bulge_displacement(self.plate_distance, amplitude, reach))
+                           bulge_displacement(self.plate_distance, amplitude, reach, response, self.t))
 
     @property
     def walls(self) -> WallGeometry:
@@ -116,15 +117,39 @@ def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
             dist_out[k, s] = dist[s]
 
 
-def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float) -> np.ndarray:
-    """Displacement (same shape as plate_distance, m) of a plate at distance d (m) from the nearest copter
-    body: ``amplitude · exp(−(d/reach)²)`` — the ``wall_bulge`` effect's form, set by what a log shows
-    (how far readings shorten, and how close a copter must come), not by hinge height or altitude."""
+def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float, response: float = 0.0,
+                       t: np.ndarray | None = None) -> np.ndarray:
+    """Displacement (T, S_p) m of each plate, plate_distance (T, S_p) m from the nearest copter body: the target
+    ``amplitude · exp(−(d/reach)²)`` — the ``wall_bulge`` effect's form, set by what a log shows (how far
+    readings shorten, how close a copter must come, how slowly the curtain follows), not by hinge height or
+    altitude. With ``response`` τ > 0 s the plates follow the target as a first-order lag on the log's times
+    t (T,) s: x_k = x_{k−1} + (1 − exp(−Δt_k/τ))·(target_k − x_{k−1}), starting at rest on the first target (a
+    curtain keeps bending after the copter has passed, as the hinge does)."""
     if amplitude == 0.0:
         return np.zeros_like(plate_distance)
     if not reach > 0:
         raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
-    return amplitude * np.exp(-(plate_distance / reach) ** 2)
+    target = amplitude * np.exp(-(plate_distance / reach) ** 2)
+    if response == 0.0:
+        return target
+    if not response > 0 or t is None or t.shape[0] != target.shape[0]:
+        raise ValueError(f"bulge response = {response!r}: expected >= 0 s with the log's times (T,)")
+    alpha = -np.expm1(-np.diff(t) / response)
+    return first_order_lag(np.ascontiguousarray(target, dtype=np.float64), np.ascontiguousarray(alpha))
+
+
+@njit(cache=True)
+def first_order_lag(target, alpha):
+    """out (T, S): out[0] = target[0], out[k] = out[k−1] + alpha[k−1]·(target[k] − out[k−1]); alpha (T−1,)."""
+    T, S = target.shape
+    out = np.empty_like(target)
+    for s in range(S):
+        out[0, s] = target[0, s]
+    for k in range(1, T):
+        a = alpha[k - 1]
+        for s in range(S):
+            out[k, s] = out[k - 1, s] + a * (target[k, s] - out[k - 1, s])
+    return out
 
 
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:

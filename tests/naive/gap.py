@@ -1,6 +1,8 @@
 """Plain NumPy references for the gap-diagnosis kernels (slow, readable; tests only)."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from finkensim.kernels.rng import STREAM_EFFECT, normals_array, uniforms_array
@@ -80,3 +82,13 @@ def imu_windows(pos, yaw_unwrapped, t, k, h, b=1):
     v1 = (pos[k] - pos[k - b]) / (t[k] - t[k - b])
     v0 = (pos[k - h] - pos[k - h - b]) / (t[k - h] - t[k - h - b])
     return np.concatenate([v1 - v0, (yaw_unwrapped[k] - yaw_unwrapped[k - h])[:, None]], axis=1)
+
+
+def first_order_lag(target, t, tau):
+    """(T, S) plates following ``target`` (T, S) with time constant tau s on times t (T,), written as the
+    exact solution of dx/dt = (target − x)/tau with the target held over each interval (not the kernel's
+    recursion): x(t_k) = target_k + (x(t_{k−1}) − target_k)·exp(−(t_k − t_{k−1})/tau)."""
+    out = [np.array(target[0], dtype=float)]
+    for k in range(1, len(t)):
+        out.append(target[k] + (out[-1] - target[k]) * math.exp(-(t[k] - t[k - 1]) / tau))
+    return np.array(out)
