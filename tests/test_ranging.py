@@ -17,6 +17,13 @@ from finkensim.sensors.ranging import RangingModel, ideal_ranges, ranging_readin
 from finkensim.sensors.ranging_table import ResponsibilityTable
 from finkensim.sensors.ranging_kernels import ranging_env, row_key
 from finkensim.sensors.ranging_table import build_alias
+from tests.stats import (
+    assert_mean_within_se,
+    assert_proportion_within_se,
+    assert_std_within_se,
+    assert_within_se,
+    se_std_normal,
+)
 from tests.naive.ranging import (
     naive_build_alias,
     naive_pick_components,
@@ -70,8 +77,8 @@ def test_shapes_self_and_beacon_columns(models, mode):
             m, sd = Mixture.default().conditional_mean_std(x)
         else:
             m, sd = Mixture.default().seed_mean_std(x, 10.0)
-        z = (y - m) / sd
-        assert abs(z.mean()) < 5 / np.sqrt(z.size), (mode, z.mean(), z.size)  # a 0.3 m bias is ≈ 1.8 per reading
+        z = (y - m) / sd  # standardised: SE of the mean 1/√n (a 0.3 m bias is ≈ 1.8 per reading)
+        assert_mean_within_se(z, 0.0, se=1 / np.sqrt(z.size), what=f"{mode}: mean standardised ranging error")
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -96,8 +103,8 @@ def test_negative_draws_are_clipped_to_zero():
     y = model.sample(np.full(10_000, 0.1), seed=2)
     assert np.all(y >= 0.0)
     p = stats.norm.cdf(0.0, loc=0.1, scale=1.0)  # P(N(0.1, 1) < 0) = 0.4602
-    se = np.sqrt(p * (1 - p) / y.size)  # 0.005: a bias of a few % in the clip share fails
-    assert abs(np.mean(y == 0.0) - p) < 5 * se
+    # SE √(p(1−p)/n) = 0.005, 5 SE = 0.025 (5.4 % of p): a bias of about 5 % in the clip share fails
+    assert_proportion_within_se(y == 0.0, p, what="share of draws clipped to 0")
 
 
 def test_ideal_flag_and_symmetry(models):
@@ -110,11 +117,13 @@ def test_ideal_flag_and_symmetry(models):
 
 
 def test_i_to_j_and_j_to_i_are_independent(models):
-    pos = np.tile(np.array([[[0.0, 0.0], [1.0, 0.0]]]), (4000, 1, 1))
-    out = ranging_readings(pos, (), 11, np.arange(4000), 3, models["mixture"])
+    n = 20_000
+    pos = np.tile(np.array([[[0.0, 0.0], [1.0, 0.0]]]), (n, 1, 1))
+    out = ranging_readings(pos, (), 11, np.arange(n), 3, models["mixture"])
     a, b = out[:, 0, 1], out[:, 1, 0]
-    assert np.mean(a == b) < 0.01
-    assert abs(np.corrcoef(a, b)[0, 1]) < 0.06
+    assert np.mean(a == b) < 0.01  # a guard against one shared draw (it would give 1), not an estimate
+    # under independence the sample correlation has SE 1/√n = 0.007: 5 SE = 0.035 catches a correlation of 0.035
+    assert_within_se(np.corrcoef(a, b)[0, 1], 0.0, 1 / np.sqrt(n), what="correlation of i→j and j→i readings")
 
 
 def test_input_errors(models):
@@ -263,42 +272,51 @@ def test_mixture_samples_match_analytic_conditional_cdf(models, mix, x):
     y = models["mixture"].sample(np.full(20_000, x), seed=int(x * 1000))
     res = stats.kstest(y, lambda v: mix.conditional_cdf(v, x, clip_at_zero=True))
     assert res.pvalue > 1e-3, (x, res)
-    # the near-atoms of the 8 degenerate components are there (e.g. 1.70 m -> atoms at 1.52/1.54 m)
+    # the near-atoms of the 8 degenerate components are there (e.g. 1.70 m -> atoms at 1.52/1.54 m): the share of
+    # draws within 2 mm of them is the conditional law's mass there, 0.149; with 200 000 draws its SE is 0.0008,
+    # 5 SE = 0.004 (2.7 % of it): a few-percent bias in the atoms' weight fails
     if x == 1.7:
-        near_atom = np.abs(y[:, None] - np.array([1.48, 1.52, 1.54, 2.12, 2.16])).min(axis=1) < 0.002
-        assert near_atom.mean() > 0.08
-
-
-def _mean_std_with_se(y):
-    n = y.size
-    m, s = y.mean(), y.std()
-    d2 = (y - m) ** 2
-    return m, s, s / np.sqrt(n), np.std(d2) / (2 * s * np.sqrt(n))
+        atoms = np.array([1.48, 1.52, 1.54, 2.12, 2.16])
+        p = sum(mix.conditional_cdf(np.array([a + 0.002]), x, clip_at_zero=True)[0]
+                - mix.conditional_cdf(np.array([a - 0.002]), x, clip_at_zero=True)[0] for a in atoms)
+        assert p > 0.08
+        y2 = models["mixture"].sample(np.full(200_000, x), seed=17)
+        near_atom = np.abs(y2[:, None] - atoms).min(axis=1) < 0.002
+        assert_proportion_within_se(near_atom, p, what="share of draws within 2 mm of the atoms at 1.7 m")
 
 
 def test_mixture_mean_std_at_one_metre(models, mix):
+    """400 000 draws: SE of the mean 0.00027 m, of the std 0.0003 m (from the sample); 5 SE is 0.13 % of the mean
+    and ≈ 0.8 % of the std (plus the table's 1e-3 m error bound on the std)."""
     y = models["mixture"].sample(np.full(400_000, 1.0), seed=5)
-    m, s, se_m, se_s = _mean_std_with_se(y)
     am, asd = mix.conditional_mean_std(1.0)
-    assert abs(m - am) < 5 * se_m and abs(s - asd) < 5 * se_s + 1e-3  # 1e-3: table error bound
+    assert_mean_within_se(y, am, what="mixture reading mean at 1 m")
+    assert_std_within_se(y, asd, ddof=0, slack=1e-3, what="mixture reading std at 1 m")  # slack: table error bound
     assert abs(am - 1.011) < 0.001 and abs(asd - 0.170) < 0.002  # DESIGN.md: 1.011 +- 0.170 m
-    assert abs(m - 1.011) < 0.002 and abs(s - 0.170) < 0.003
+    # against the documented three-decimal figures: 5 SE, plus their rounding (0.0005 m) and for the std the table
+    # error bound (1e-3 m)
+    assert_mean_within_se(y, 1.011, slack=0.0005, what="mixture reading mean at 1 m vs DESIGN.md's 1.011 m")
+    assert_std_within_se(y, 0.170, ddof=0, slack=0.0015, what="mixture reading std at 1 m vs DESIGN.md's 0.170 m")
 
 
 def test_seed_mode_mean_std_at_one_metre(models, mix):
+    """200 000 draws: SE of the mean 0.0002 m, of the std 0.00014 m (from the sample); 5 SE is 0.1 % of the mean
+    and 0.8 % of the std."""
     y = models["seed"].sample(np.full(200_000, 1.0), seed=6)
-    m, s, se_m, se_s = _mean_std_with_se(y)
     am, asd = mix.seed_mean_std(1.0, 10.0)
-    assert abs(m - am) < 5 * se_m and abs(s - asd) < 5 * se_s
+    assert_mean_within_se(y, am, what="seed-mode reading mean at 1 m")
+    se_s = assert_std_within_se(y, asd, ddof=0, what="seed-mode reading std at 1 m")
     assert abs(am - 1.011) < 0.001 and abs(asd - 0.084) < 0.001  # shared/data/README.md
-    # the script's averaging is narrower than the correct mixture
-    assert s < 0.6 * mix.conditional_mean_std(1.0)[1]
+    # the script's averaging is narrower than the correct mixture: by more than 5 SE of the sample std
+    assert y.std() < 0.6 * mix.conditional_mean_std(1.0)[1] - 5 * se_s
 
 
 def test_gaussian_mode_statistics():
+    """100 000 draws of N(1.2, 0.05²): SE of the mean σ/√n = 0.00016 m, of the std σ/√(2(n−1)) = 0.00011 m; 5 SE
+    is 0.07 % of the mean and 1.1 % of σ."""
     y = RangingModel("gaussian", sigma=0.05).sample(np.full(100_000, 1.2), seed=7)
-    assert abs(y.mean() - 1.2) < 5 * 0.05 / np.sqrt(y.size)
-    assert abs(y.std() - 0.05) < 0.001
+    assert_mean_within_se(y, 1.2, se=0.05 / np.sqrt(y.size), what="gaussian-mode reading mean")
+    assert_std_within_se(y, 0.05, se=se_std_normal(0.05, y.size), what="gaussian-mode reading std")
 
 
 # ---------------------------------------------------------------- the responsibility table
@@ -419,8 +437,8 @@ def test_mixture_file_from_config(tmp_path):
     cfg = RangingConfig(error="mixture", mixture_file=str(path), beacons=((1.0, 2.0),))
     model = RangingModel.from_config(cfg)
     assert model.mixture.n_components == 2 and model.beacons.shape == (1, 2)
-    y = model.sample(np.full(20_000, 1.0), seed=1)
-    assert abs(y.mean() - model.mixture.conditional_mean_std(1.0)[0]) < 0.005
+    y = model.sample(np.full(20_000, 1.0), seed=1)  # SE of the mean ≈ 0.0003 m (from the sample): 5 SE ≈ 0.15 %
+    assert_mean_within_se(y, model.mixture.conditional_mean_std(1.0)[0], what="reading mean of a file's mixture")
     seed_model = RangingModel.from_config(RangingConfig(error="seed"))
     assert seed_model.error == "seed" and seed_model.table is None
     # a RangingConfig is accepted as params
@@ -430,18 +448,26 @@ def test_mixture_file_from_config(tmp_path):
 
 
 def test_fit_recovers_two_components():
+    """Two well-separated components (≥ 6 σ apart), so the fit's estimates have the SEs of the per-component
+    sample statistics: weight √(p(1−p)/n), mean σ/√n_k, std σ/√(2 n_k). With n = 60 000, 5 SE is 3.1 % of the
+    0.3 weight, ≤ 1 % of a mean and ≤ 4.6 % of a std: a few-percent bias in any parameter fails."""
     rng = np.random.default_rng(10)
-    n = 6000
+    n = 60_000
     comp = rng.random(n) < 0.3
     x = np.where(comp, rng.normal(0.5, 0.1, n), rng.normal(1.8, 0.2, n))
     y = np.where(comp, rng.normal(0.6, 0.05, n), rng.normal(1.7, 0.1, n))
     fit = Mixture.fit(x, y, 2, "diag", seed=0)
     order = np.argsort(fit.mean)
-    np.testing.assert_allclose(fit.weights[order], [0.3, 0.7], atol=0.03)
-    np.testing.assert_allclose(fit.mean[order], [0.5, 1.8], atol=0.03)
-    np.testing.assert_allclose(fit.cond_mean[order], [0.6, 1.7], atol=0.03)
-    np.testing.assert_allclose(np.sqrt(fit.covar[order]), [0.1, 0.2], rtol=0.15)
-    np.testing.assert_allclose(np.sqrt(fit.cond_covar[order]), [0.05, 0.1], rtol=0.15)
+    n_k = np.array([comp.sum(), (~comp).sum()])
+    for k, (w, mx, sx, my, sy) in enumerate([(0.3, 0.5, 0.1, 0.6, 0.05), (0.7, 1.8, 0.2, 1.7, 0.1)]):
+        j = order[k]
+        assert_within_se(fit.weights[j], w, np.sqrt(w * (1 - w) / n), what=f"fitted weight {k}")
+        assert_within_se(fit.mean[j], mx, sx / np.sqrt(n_k[k]), what=f"fitted mean of x, component {k}")
+        assert_within_se(fit.cond_mean[j], my, sy / np.sqrt(n_k[k]), what=f"fitted mean of y, component {k}")
+        assert_within_se(np.sqrt(fit.covar[j]), sx, se_std_normal(sx, n_k[k]),
+                         what=f"fitted std of x, component {k}")
+        assert_within_se(np.sqrt(fit.cond_covar[j]), sy, se_std_normal(sy, n_k[k]),
+                         what=f"fitted std of y, component {k}")
     assert fit.is_diagonal
     with pytest.raises(ValueError, match="covariance_type"):
         Mixture.fit(x, y, 2, "tied")
@@ -457,9 +483,10 @@ def test_full_covariance_conditional_mean_depends_on_x():
     np.testing.assert_allclose(m, 1.1 + 0.75 * (xs - 1.0))
     np.testing.assert_allclose(s, np.sqrt(0.0275))
     model = RangingModel("mixture", mixture=one)
-    for x in xs:
+    for x in xs:  # SE of the mean √(0.0275/n) = 0.0012 m: 5 SE is ≤ 0.8 % of the conditional mean
         y = model.sample(np.full(20_000, x), seed=3)
-        assert abs(y.mean() - (1.1 + 0.75 * (x - 1.0))) < 5 * np.sqrt(0.0275 / 20_000)
+        assert_mean_within_se(y, 1.1 + 0.75 * (x - 1.0), se=np.sqrt(0.0275 / y.size),
+                              what=f"reading mean at x = {x} (full covariance)")
     # two components: E[Y | X] = sum_i r_i(X) (m_i + s_i (X - mu_i))
     two = Mixture.from_joint([0.4, 0.6], [[0.8, 0.9], [1.6, 1.5]],
                              [[[0.02, 0.01], [0.01, 0.02]], [[0.05, -0.02], [-0.02, 0.03]]])
@@ -467,11 +494,13 @@ def test_full_covariance_conditional_mean_depends_on_x():
     want = (r * (two.cond_mean + two.slope * (xs[:, None] - two.mean))).sum(axis=1)
     np.testing.assert_allclose(two.conditional_mean_std(xs)[0], want)
     np.testing.assert_allclose(two.slope, [0.5, -0.4])
-    # a full fit on correlated data recovers the slope
+    # a full fit on correlated data recovers the slope: SE of a regression slope √(σ²_res / (n σ²_x)) = 0.0037 for
+    # n = 50 000, 5 SE = 0.019 (2.5 % of 0.75)
     rng = np.random.default_rng(11)
-    xy = rng.multivariate_normal([1.0, 1.1], cov[0], 5000)
+    n = 50_000
+    xy = rng.multivariate_normal([1.0, 1.1], cov[0], n)
     fit = Mixture.fit(xy[:, 0], xy[:, 1], 1, "full")
-    assert abs(fit.slope[0] - 0.75) < 0.05
+    assert_within_se(fit.slope[0], 0.75, np.sqrt(0.0275 / (n * 0.04)), what="fitted slope of y on x")
     with pytest.raises(MixtureError, match="positive definite"):
         Mixture.from_joint([1.0], [[1.0, 1.0]], [[[0.01, 0.02], [0.02, 0.01]]])
 
@@ -525,4 +554,6 @@ def test_sampler_matches_the_mixture_computed_from_the_json(models, x):
         m4 = float((r * (c**4 + 6 * c**2 * sd**2 + 3 * sd**4)).sum())  # fourth central moment of the mixture
         se_m = np.sqrt(var / y.size)
         se_s = np.sqrt((m4 - var**2) / (4 * var * y.size))  # delta method for the sample std
-        assert abs(y.mean() - mean) < 5 * se_m and abs(y.std() - np.sqrt(var)) < 5 * se_s
+        assert_mean_within_se(y, mean, se=se_m, what=f"reading mean at x = {x} vs the JSON's closed form")
+        assert_std_within_se(y, np.sqrt(var), se=se_s, ddof=0,
+                             what=f"reading std at x = {x} vs the JSON's closed form")
