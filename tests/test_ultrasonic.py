@@ -21,6 +21,7 @@ from finkensim.sensors.ultrasonic import (
 from finkensim.behaviours.open_loop import RandomWalk
 from finkensim.world import World
 from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
+from tests.stats import assert_mean_within_se, assert_proportion_within_se, assert_std_within_se, se_std_normal
 
 HYP = settings(derandomize=True, deadline=None, max_examples=40,
                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -216,9 +217,8 @@ def test_seed_profile_crosstalk_rate_and_rayleigh_term():
     assert sp.error == 3 and sp.crosstalk == 1 and sp.crosstalk_probability == 0.68
     halved = r == 0.5 * true
     assert np.all(halved | (r > 0.9 * true))  # either exactly d/2 or d + (R - s)
-    n = r.size
-    rate = halved.mean()
-    assert abs(rate - 0.68) < 3 * math.sqrt(0.68 * 0.32 / n)
+    # 20 000 readings: SE √(p(1−p)/n) = 0.0033, 5 SE = 0.016 (2.4 % of 0.68)
+    assert_proportion_within_se(halved, 0.68, what="seed-profile cross-talk rate")
     R = r[~halved] - true[~halved] + rayleigh_std(sp.sigma)
     assert stats.kstest(R, stats.rayleigh(scale=sp.sigma).cdf).pvalue > 1e-3
     assert stats.kstest(R, stats.rayleigh(scale=1.3 * sp.sigma).cdf).pvalue < 1e-6  # the test has power
@@ -231,7 +231,11 @@ def test_default_rayleigh_runs_short():
     r = ultrasonic_readings(pos, yaw, th, arena, sp, 9, np.arange(B), 0)[:, 0, :]
     R = -(r - np.array([1.5, 2.0, 1.5, 2.0])) + rayleigh_std(0.1)
     assert stats.kstest(R.ravel(), stats.rayleigh(scale=0.1).cdf).pvalue > 1e-3
-    assert np.mean(r - [1.5, 2.0, 1.5, 2.0]) < 0  # short on average by (sqrt(pi/2) - 0.655) sigma
+    # short on average by (√(π/2) − 0.6551)·σ = 0.0598 m; 16 000 readings: SE (from the sample) ≈ 0.0005 m, 5 SE ≈
+    # 4.4 % of the shortfall
+    short = rayleigh_std(0.1) - math.sqrt(math.pi / 2) * 0.1
+    assert short < 0
+    assert_mean_within_se(r - [1.5, 2.0, 1.5, 2.0], short, what="mean Rayleigh reading error (runs short)")
 
 
 def test_gaussian_moments():
@@ -254,11 +258,14 @@ def test_geometric_crosstalk_fires_when_facing_in_same_slot():
     np.testing.assert_allclose(r[0, :, 1:], dist[0, :, 1:], atol=1e-12)  # no emitter in the other cones
     # with jitter, the cross-talk reading is 0.5 + N(0, jitter^2): still the first arrival here
     _, _, spj = setup(n=2, error="rayleigh", crosstalk_jitter=0.02, schedule="simultaneous")
-    pos2, yaw2, th2 = arrays(np.tile(pos, (200, 1, 1)), np.tile(yaw, (200, 1)), arena, np.zeros((200, 64)))
-    rj = ultrasonic_readings(pos2, yaw2, th2, arena, spj, 0, np.arange(200), 0)
+    B = 5000
+    pos2, yaw2, th2 = arrays(np.tile(pos, (B, 1, 1)), np.tile(yaw, (B, 1)), arena, np.zeros((B, 64)))
+    rj = ultrasonic_readings(pos2, yaw2, th2, arena, spj, 0, np.arange(B), 0)
     x = rj[:, :, 0].ravel()
-    se_mean, se_std = 0.02 / np.sqrt(x.size), 0.02 / np.sqrt(2 * x.size)  # 0.001 m and 0.0007 m for 400 readings
-    assert abs(x.mean() - 0.5) < 5 * se_mean and abs(x.std(ddof=1) - 0.02) < 5 * se_std
+    # 10 000 readings: SE of the mean σ/√n = 0.0002 m (5 SE = 0.2 % of 0.5 m), of the std σ/√(2(n−1)) = 0.00014 m
+    # (5 SE = 3.5 % of the 0.02 m jitter)
+    assert_mean_within_se(x, 0.5, se=0.02 / np.sqrt(x.size), what="cross-talk reading mean with jitter")
+    assert_std_within_se(x, 0.02, se=se_std_normal(0.02, x.size), what="cross-talk reading std (jitter)")
 
 
 def test_round_robin_different_slots_never_crosstalk():
@@ -381,12 +388,14 @@ def test_down_sonar():
     pos = np.zeros((2, 3, 2))
     np.testing.assert_array_equal(down_readings(pos, sp, 0, [0, 1], 0), np.full((2, 3), 0.6))
     _, _, sp = setup(n=3)
-    d = down_readings(np.zeros((500, 3, 2)), sp, 0, np.arange(500), 0)
+    d = down_readings(np.zeros((20_000, 3, 2)), sp, 0, np.arange(20_000), 0)
     assert np.all(d <= 0.6 + rayleigh_std(0.05))
     # default: d = 0.6 − (R − s), so 0.6 − d + s ~ Rayleigh(σ), mean 0.6 − 0.5982σ (runs short), std s
     assert stats.kstest(0.6 - d.ravel() + rayleigh_std(0.05), stats.rayleigh(scale=0.05).cdf).pvalue > 1e-3
-    se = rayleigh_std(0.05) / np.sqrt(d.size)  # 0.00085 m for 1500 readings
-    assert abs(d.mean() - (0.6 - (math.sqrt(math.pi / 2) * 0.05 - rayleigh_std(0.05)))) < 5 * se
+    # SE s/√n = 0.00013 m for 60 000 readings; 5 SE = 0.00067 m, the mean's change for a 2.2 % error in σ
+    se = rayleigh_std(0.05) / np.sqrt(d.size)
+    assert_mean_within_se(d, 0.6 - (math.sqrt(math.pi / 2) * 0.05 - rayleigh_std(0.05)), se=se,
+                          what="down-sonar reading mean")
 
 
 # ------------------------------------------------------------------ culled raycast (fast path) vs full search
