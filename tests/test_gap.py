@@ -27,6 +27,7 @@ from finkensim.gap.validate import CASES, generate
 from finkensim.sensors.sonar_model import SCHEDULE_SIMULTANEOUS, wall_geometry
 from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
 from tests.naive import gap as naive
+from tests.stats import assert_above_se, assert_mean_within_se, assert_proportion_within_se, se_mean
 
 SMALL = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}
 
@@ -40,8 +41,9 @@ def test_crps_ensemble_matches_closed_form_normal():
     y = mu + sig * rng.normal(size=n)
     draws = mu[:, None] + sig[:, None] * rng.normal(size=(n, M))
     diff = crps_ensemble(draws, y) - crps_normal(mu, sig, y)
-    # the fair estimator is unbiased; its per-reading error has sd ~ sigma/sqrt(M)·O(1)
-    assert abs(diff.mean()) < 5 * diff.std() / math.sqrt(n)
+    # the fair estimator is unbiased: 5 SE of the sample ≈ 0.0033, ≈ 0.5 % of the mean CRPS (≈ 0.7)
+    assert_mean_within_se(diff, 0.0, what="fair ensemble CRPS − closed-form CRPS")
+    # its per-reading error has sd ~ sigma/sqrt(M)·O(1): an accuracy ceiling (≈ 0.029 here), not an estimate
     assert np.mean(np.abs(diff)) < 0.05
 
 
@@ -57,8 +59,9 @@ def test_gap_is_zero_mean_when_reality_matches_the_model_and_positive_otherwise(
     draws = rng.gamma(2.0, 1.0, size=(n, M))
     y = rng.gamma(2.0, 1.0, size=n)
     g = gap_ensemble(draws, y)
-    assert abs(g.mean()) < 5 * g.std() / math.sqrt(n)
-    assert gap_ensemble(draws, y * 1.5 + 1.0).mean() > 0.3
+    assert_mean_within_se(g, 0.0, what="gap under the model")  # 5 SE ≈ 0.026, ≈ 2 % of E|X − X'| ≈ 1.3
+    g2 = gap_ensemble(draws, y * 1.5 + 1.0)  # ≈ 1.0, SE 0.013
+    assert_above_se(g2.mean(), 0.3, se_mean(g2), what="gap of a stretched and shifted reality")
 
 
 def test_ensemble_terms_match_brute_force():
@@ -85,29 +88,40 @@ def test_grouped_pair_term_is_unbiased_when_members_share_an_input():
     true = 2 * math.sqrt(1.04) / math.sqrt(math.pi)  # E|X−X'| for X ~ N(0, 1.04)
     _, b_all = ensemble_terms(draws, np.zeros(n))
     _, b_ind = ensemble_terms_grouped(draws, np.zeros(n), np.full(n, G))
-    assert b_all.mean() < 0.95 * true  # 2 of 23 pair partners share the input: about 7 % low
-    assert b_ind.mean() == pytest.approx(true, rel=0.01)
+    # 2 of 23 pair partners share the input, E|0.2(e − e')| = 2·0.2/√π for them: 7.0 % low
+    shared_low = (2 * 2 * 0.2 / math.sqrt(math.pi) + 21 * true) / 23
+    assert shared_low < 0.95 * true
+    # SE of each mean ≈ 0.002 (from the sample): 5 SE ≈ 0.9 % of E|X − X'|
+    assert_mean_within_se(b_all, shared_low, what="pair term over all pairs (members share inputs)")
+    assert_mean_within_se(b_ind, true, what="pair term over independent pairs")
 
 
 def test_brier_gap_zero_mean():
     rng = np.random.default_rng(4)
     p = rng.uniform(0, 1, 50000)
     z = rng.random(50000) < p
-    assert abs(brier_gap(p, z).mean()) < 0.003
+    # 5 SE of the sample ≈ 0.004, 2.4 % of the mean Brier score E[p(1 − p)] = 1/6
+    assert_mean_within_se(brier_gap(p, z), 0.0, what="Brier gap under the model")
 
 
 # ----------------------------------------------------------------------------------- statistics
 
 def test_block_bootstrap_ci_covers_the_mean_for_iid_data():
+    """The 95 % percentile interval over 40 iid blocks covers like ±z_0.975·(plug-in SE) does for a t_39 statistic:
+    P(|t_39| < 1.96·√(39/40)) = 0.940 (the 300-replicate quantile noise moves this by less than the SE). 2 000
+    trials: SE √(p(1−p)/n) = 0.0053, 5 SE = 0.027 (2.8 % of 0.94), so an undercoverage of ≈ 3 % fails."""
     rng = np.random.default_rng(5)
-    hits = 0
-    for k in range(60):
+    trials = 2000
+    ids = time_blocks(np.zeros(2000, int), np.arange(2000), {0: 2000}, n_blocks_per_flight=40)
+    covered = np.zeros(trials, dtype=bool)
+    for k in range(trials):
         v = rng.normal(size=2000)
-        ids = time_blocks(np.zeros(2000, int), np.arange(2000), {0: 2000}, n_blocks_per_flight=40)
         s = BlockBootstrap(ids, n_boot=300, seed=k).stats(v)
-        hits += s.ci[0] <= 0 <= s.ci[1]
+        covered[k] = s.ci[0] <= 0 <= s.ci[1]
         assert s.n == 2000 and s.n_blocks == 40
-    assert hits >= 51  # 95 % nominal; P(fewer than 51 of 60) is about 1 %
+    expected = 1 - 2 * stats.t.sf(stats.norm.ppf(0.975) * math.sqrt(39 / 40), 39)
+    assert 0.93 < expected < 0.95
+    assert_proportion_within_se(covered, expected, what="coverage of the 95 % block-bootstrap interval")
 
 
 def test_fdr_control():
