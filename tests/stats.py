@@ -18,7 +18,8 @@ import math
 import numpy as np
 
 __all__ = [
-    "N_SE", "se_mean", "se_std", "se_std_normal", "se_proportion", "se_median_bootstrap", "assert_within_se",
+    "N_SE", "se_mean", "se_std", "se_std_normal", "se_proportion", "se_median_bootstrap", "se_bootstrap",
+    "assert_within_se",
     "assert_above_se", "assert_mean_within_se", "assert_std_within_se", "assert_proportion_within_se",
     "assert_median_within_se",
 ]
@@ -65,6 +66,15 @@ def se_median_bootstrap(sample, n_boot: int = 400, seed: int = 0) -> float:
     rng = np.random.default_rng(seed)
     meds = np.array([np.median(x[rng.integers(0, x.size, x.size)]) for _ in range(n_boot)])
     return float(meds.std(ddof=1))
+
+
+def se_bootstrap(statistic, n: int, n_boot: int = 200, seed: int = 0) -> float:
+    """SE of any statistic of n iid rows where no formula is at hand: the standard deviation of
+    ``statistic(idx)`` over n_boot bootstrap index vectors ``idx`` (n row numbers drawn with replacement, fixed
+    seed). ``statistic(np.arange(n))`` is the statistic of the sample itself."""
+    rng = np.random.default_rng(seed)
+    reps = np.array([float(statistic(rng.integers(0, n, n))) for _ in range(n_boot)])
+    return float(reps.std(ddof=1))
 
 
 def _check_se(se, what):

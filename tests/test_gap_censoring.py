@@ -7,14 +7,18 @@
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy import stats
 
 from finkensim.gap.censoring import Censoring, atoms, detect_censoring
 from finkensim.gap.scoring import ensemble_terms
 from finkensim.gap.shrink import ShrinkMeter
+from tests.stats import assert_above_se, assert_mean_within_se, assert_within_se, se_bootstrap, se_mean
 
 MAX, MIN, SIGMA = 3.0, 0.2, 0.05
 
@@ -76,7 +80,8 @@ def test_every_no_echo_convention_scores_alike(seed, noise):
 
 def test_the_censored_gap_is_zero_mean_under_the_model_and_sees_lost_echoes():
     """Readings drawn from the model's own distribution (with a mass at the limit) give a gap whose mean is
-    within 4 standard errors of 0; moving 30 % of the echoes to the limit gives a clearly positive gap."""
+    within 5 standard errors of 0 (5 SE ≈ 0.0007 m, 1.2 % of E|X − X'|); moving 30 % of the echoes to the limit gives
+    a gap more than 10 standard errors above 0."""
     rng = np.random.default_rng(4)
     n, M = 20000, 16
     ideal = rng.uniform(0.3, 3.5, n)
@@ -89,11 +94,11 @@ def test_the_censored_gap_is_zero_mean_under_the_model_and_sees_lost_echoes():
     c = Censoring(lo=MIN + 4 * SIGMA, hi=MAX - 4 * SIGMA)
     a, b = ensemble_terms(c.draws(draws), c.observed(y))
     gap = a - b
-    assert abs(gap.mean()) < 4 * gap.std(ddof=1) / np.sqrt(n)
+    assert_mean_within_se(gap, 0.0, what="censored gap under the model")
     lost = np.where(rng.random(n) < 0.3, MAX, y)
     a2, b2 = ensemble_terms(c.draws(draws), c.observed(lost))
     g2 = a2 - b2
-    assert g2.mean() > 10 * g2.std(ddof=1) / np.sqrt(n)
+    assert_above_se(g2.mean(), 0.0, se_mean(g2), n_se=10, what="censored gap with 30 % lost echoes")
 
 
 def _normal_rows(rng, mu, s, y, M=32):
@@ -102,18 +107,45 @@ def _normal_rows(rng, mu, s, y, M=32):
     return {"s": a - 0.5 * b}, {"s": a - b}
 
 
+def _expected_rows(mu, s):
+    """Closed-form (E[score], E[gap]) of the predictive N(mu, s²) for readings y ~ N(1, 1): E|X − y| with
+    X − y ~ N(mu − 1, s² + 1), E|X − X'| = 2s/√π."""
+    m, sd = 1.0 - mu, math.sqrt(s * s + 1.0)
+    a = sd * math.sqrt(2 / math.pi) * math.exp(-m * m / (2 * sd * sd)) + m * (1 - 2 * stats.norm.cdf(-m / sd))
+    b = 2 * s / math.sqrt(math.pi)
+    return a - 0.5 * b, a - b
+
+
 def test_a_wider_predictive_cannot_pass_for_the_explanation():
     """Readings with a bias: the bias model explains ~all; a model that only widens its noise reaches a
-    calibration gap near 0 but scores worse, so its shrink is well below the bias model's, and ≤ 1."""
+    calibration gap near 0 but scores worse, so its shrink is well below the bias model's, and ≤ 1.
+
+    Every statistic against its closed-form value (:func:`_expected_rows`) within 5 SE of its 100 000 rows (SE from
+    the rows): the wide model's gap 0.0103 (5 SE ≈ 0.009, 3.3 % of the base gap 0.271 it is judged against), the
+    right model's shrink 1 (5 SE ≈ 0.024), the wide model's shrink 0.0992 (bootstrap SE, 5 SE ≈ 0.012): an error of
+    a few hundredths in a shrink fails."""
     rng = np.random.default_rng(5)
-    y = 1.0 + rng.standard_normal(20000)
+    n = 100_000
+    y = 1.0 + rng.standard_normal(n)
     base = _normal_rows(rng, 0.0, 1.0, y)
     right = _normal_rows(rng, 1.0, 1.0, y)
     wide = _normal_rows(rng, 0.0, np.sqrt(2.0), y)  # the CRPS-best pure widening for a unit bias
-    assert abs(np.mean(wide[1]["s"])) < 0.05  # calibrated in the energy sense
+    (s0, c0), (s_right, _), (s_wide, c_wide) = (_expected_rows(0, 1), _expected_rows(1, 1),
+                                                _expected_rows(0, math.sqrt(2)))
+    assert abs(c_wide) < 0.05 * c0  # calibrated in the energy sense
+    assert_mean_within_se(wide[1]["s"], c_wide, what="calibration gap of the widened model")
     meter = ShrinkMeter(base[0], base[1], ["s"], [right[0], wide[0]])
+    # the right model scores best, so its shrink is 1 − |c|/c0 with c its calibration gap (0 ± SE)
     assert meter.shrink(*right) > 0.95
+    assert_within_se(meter.shrink(*right), 1.0, se_mean(right[1]["s"]) / meter.c0, what="shrink of the right model")
     assert meter.shrink(*wide) < 0.6
+
+    def shrink_wide(i):
+        pick = [{"s": r["s"][i]} for r in (*base, *right, *wide)]
+        return ShrinkMeter(pick[0], pick[1], ["s"], [pick[2], pick[4]]).shrink(pick[4], pick[5])
+
+    want = min(1 - abs(c_wide) / c0, (s0 - s_wide) / (s0 - s_right))
+    assert_within_se(meter.shrink(*wide), want, se_bootstrap(shrink_wide, n), what="shrink of the widened model")
     only_wide = ShrinkMeter(base[0], base[1], ["s"], [wide[0]])
     assert only_wide.shrink(*wide) <= 1.0
 
