@@ -14,6 +14,7 @@ from finkensim.flightlog import FlightLog
 from finkensim.gap import validate_sweep
 from finkensim.gap.conventions import NO_ECHO, NOISE, Conventions, draw_conventions
 from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, wilson
+from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
 def test_wilson_interval_matches_statsmodels_formula_values():
@@ -68,7 +69,7 @@ def _log_with_sonar(y, hit):
 def test_no_echo_conventions_rewrite_only_lost_echoes(no_echo):
     cfg = load_config()
     rng = np.random.default_rng(2)
-    hit = (rng.random((50, 3, 4)) < 0.7).astype(np.int64)
+    hit = (rng.random((4000, 3, 4)) < 0.7).astype(np.int64)  # ≈ 14 400 lost echoes
     y = np.where(hit > 0, rng.uniform(0.3, 2.5, hit.shape), cfg.sonar.max_range)
     log = _log_with_sonar(y, hit)
     Conventions(no_echo=no_echo, noise="gaussian").record(log, cfg, rng)
@@ -81,19 +82,23 @@ def test_no_echo_conventions_rewrite_only_lost_echoes(no_echo):
     else:
         v = log.ultrasonic[lost]
         assert np.all(v <= cfg.sonar.max_range) and np.all(v > cfg.sonar.max_range - 5 * cfg.sonar.sigma)
-        assert 0.3 < np.mean(v == cfg.sonar.max_range) < 0.7  # clipped half of a symmetric noise
+        # clipped half of a symmetric noise: SE √(0.25/n) ≈ 0.0042, 5 SE ≈ 0.021 (4.2 % of 0.5)
+        assert_proportion_within_se(v == cfg.sonar.max_range, 0.5, what="share of noisy time-outs clipped to max")
 
 
 def test_laplace_noise_has_the_configured_standard_deviation():
     cfg = load_config().replace({"sonar.sigma": 0.05})
     rng = np.random.default_rng(3)
-    y = np.full((4000, 2, 4), 1.5)
+    y = np.full((200_000, 2, 4), 1.5)  # n = 1.6 million: the sample kurtosis of heavy tails needs it
     log = _log_with_sonar(y, np.ones(y.shape, dtype=np.int64))
     Conventions(noise="laplace").record(log, cfg, rng)
     e = (log.ultrasonic - 1.5).ravel()
-    se = 0.05 * math.sqrt(2) / math.sqrt(e.size)  # sd of the sample sd for Laplace: σ·sqrt((κ − 1)/4n), κ = 6
-    assert abs(e.std() - 0.05) < 5 * se
-    assert stats.kurtosis(e) == pytest.approx(3.0, abs=0.5)  # Laplace excess kurtosis 3 (Gaussian 0)
+    n = e.size
+    # SE of the sample sd for Laplace: σ·√((κ − 1)/4n), κ = 6: 4.4e-5 m, 5 SE = 0.44 % of σ
+    assert_std_within_se(e, 0.05, se=0.05 * math.sqrt(5 / (4 * n)), ddof=0, what="Laplace noise std")
+    # Laplace excess kurtosis 3 (Gaussian 0). SE of the sample kurtosis √((μ8/μ2⁴ − 4μ4μ6/μ2⁵ + 4μ4³/μ2⁶ − μ4²/μ2⁴)/n)
+    # with the Laplace moments μ2k = (2k)!·b^2k: √(1188/n) = 0.027, 5 SE = 0.14 (4.5 % of 3)
+    assert_within_se(stats.kurtosis(e), 3.0, math.sqrt(1188 / n), what="Laplace noise excess kurtosis")
 
 
 def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):
