@@ -17,6 +17,7 @@ from finkensim import flightlog
 from finkensim.cli import main
 from finkensim.config import Config, config_from_dict
 from finkensim.scenario import DEFAULT_SCENARIO_TOML, default_scenario_path, load_scenario, simulate_flight
+from tests.stats import assert_median_within_se, assert_std_within_se, se_std_normal
 
 CONSOLE_SCRIPT = Path(sys.executable).parent / "finkensim"
 
@@ -115,8 +116,23 @@ def test_run_writes_valid_log_pictures_and_gif(tmp_path, capsys):
     imu, dt = log.meta["config"]["imu"], log.meta["config"]["simulation"]["dt"]
     err = (log.imu_gyro - log.extras["imu_gyro_ideal"]).ravel()
     want = math.sqrt(imu["gyro_noise_density"] ** 2 / dt + imu["gyro_bias_walk"] ** 2 * dt * (T - 1) / 2)
-    assert abs(err.std() - want) < 5 * want / math.sqrt(2 * err.size)  # 5 SE of a sample std (≈ 18 % here)
-    assert np.median(np.abs(log.ranging - log.extras["ranging_ideal"])) < 0.3
+    # 5 SE of a sample std of n = 366 normal values, σ/√(2(n−1)): ≈ 18.5 % of σ — this end-to-end run only detects
+    # a gross error in the noise scale; tests/test_imu.py bounds it within 1.4 % (the walk part, 4e-5 of the
+    # variance here, leaves the errors practically independent)
+    assert_std_within_se(err, want, se=se_std_normal(want, err.size), ddof=0, what="gyro error std in the log")
+    # in-range ranging errors: their median |reading − ideal| against the model's own, computed from 50 draws of the
+    # ranging model at every logged ideal distance; SE of the log's median by bootstrap (≈ 0.003 m for ≤ 1 830
+    # readings; 5 SE ≈ 0.015 m, ≈ 13 % of the ≈ 0.11 m median: again only a gross error, tests/test_ranging.py is tight)
+    from finkensim.sensors.ranging import RangingModel
+
+    ideal = log.extras["ranging_ideal"]
+    in_range = (ideal > 0) & (ideal < log.meta["config"]["ranging"]["max_range"])
+    abs_err = np.abs(log.ranging - ideal)
+    assert np.median(abs_err) < 0.3
+    x = ideal[in_range]
+    model = RangingModel.from_config(config_from_dict(log.meta["config"]).ranging)
+    want_med = np.median(np.abs(model.sample(np.tile(x, 50), seed=99) - np.tile(x, 50)))
+    assert_median_within_se(abs_err[in_range], want_med, what="median |ranging reading − ideal| in the log")
 
     for name in ("arena.png", "wall_response.png", "sensors.png"):
         with Image.open(out / name) as im:
