@@ -285,7 +285,7 @@ class GapConfig(_Section):
     alpha: float = _f(0.05, "", 0.0, 0.5, lo_open=True, doc="false-discovery rate for locations and significance level")
     margin: float = _f(0.02, "", 0.0, 10.0, doc="practical-significance margin on the normalised gap")
     accept_gain: float = _f(0.1, "", 0.0, 1.0, doc="an effect is added when it removes at least this fraction of the configured model's gap")
-    unexplained_shrink: float = _f(0.7, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained'")
+    unexplained_shrink: float = _f(0.7, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained' (if what the selected effects leave is itself significant)")
     tie_tolerance: float = _f(0.1, "", 0.0, 1.0, doc="effects whose held-out improvement is within this fraction of the best are near ties")
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")
     imu_velocity_baseline: float = _f(0.2, "s", 0.0, 60.0, doc="velocities compared with the IMU are mean velocities over this baseline (divides tracking noise; at most gap.imu_window)")

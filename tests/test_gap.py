@@ -429,3 +429,32 @@ def test_imu_table_equals_the_pose_derived_ideal_on_a_noise_free_flight(baseline
     ok = np.isfinite(tab.y)
     assert ok.mean() > 0.99
     np.testing.assert_allclose(D[ok], np.broadcast_to(tab.y[ok, None], D[ok].shape), atol=1e-9)
+
+
+class _FixedOverall:
+    """A stand-in for Diagnosis.overall returning a preset (mean, ci, one-sided p) per sensor."""
+
+    def __init__(self, values):
+        self.values = values
+
+    def overall(self, values, rows):
+        (s,) = values
+        return self.values[s]
+
+
+def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unknown():
+    from finkensim.gap.selection import _remaining_gaps
+
+    cfg = Config().gap
+    diag = _FixedOverall({
+        "ultrasonic": (0.2, (0.1, 0.3), 1e-6),        # clearly left over
+        "ranging": (0.01, (-0.02, 0.04), 0.3),         # cannot be told from zero
+        "imu": (-0.2, (-0.3, -0.1), 1.0 - 1e-6),       # predictive too wide: not an explanation either
+        "other": (0.2, (math.nan, math.nan), math.nan),  # too few blocks to tell
+    })
+    out = _remaining_gaps(diag, {s: None for s in diag.values}, {s: None for s in diag.values},
+                          list(diag.values), 4, cfg)
+    assert out["ultrasonic"]["significant"] and out["imu"]["significant"] and out["other"]["significant"]
+    assert not out["ranging"]["significant"]
+    assert out["ranging"]["p"] == pytest.approx(0.6)
+    assert out["imu"]["p"] == pytest.approx(2e-6)

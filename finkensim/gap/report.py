@@ -80,6 +80,12 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
         if len(v["effects"]) > 1:
             lines += ["", f"Several effects at once: {', '.join(v['effects'])} (refitted jointly; together they remove "
                           f"{100 * v['shrink_heldout']:.0f} %)."]
+        if v["shrink_heldout"] < priv.unexplained_shrink and priv.remaining:
+            left = "; ".join(f"{k} {_fmt(r['gap'])} (95 % CI {_fmt(r['ci'][0])} … {_fmt(r['ci'][1])})"
+                             for k, r in priv.remaining.items())
+            lines += ["", f"The selected effects remove {100 * v['shrink_heldout']:.0f} % of the gap, less than "
+                          f"{100 * priv.unexplained_shrink:.0f} %, but what is left cannot be told from zero on the "
+                          f"held-out flights ({left}): the data cannot show more to explain."]
         if v["ambiguous"]:
             lines += ["", f"Ambiguous: {', '.join(v['ambiguous'])} improve the held-out score within "
                           f"{priv.tie_tolerance:.0%} of {v['effect']}. Do not trust the name alone."]

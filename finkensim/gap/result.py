@@ -45,7 +45,9 @@ class GapDetails:
     on the gap sensors; ties: effects within ``tie_tolerance`` of the best; significant_locations: indices
     into ``locations``; scales: sensor → score scale; sensors, n_readings: what was compared; seconds:
     wall time; block_seconds: bootstrap block length (s); catch_all: catch-all effects among the
-    candidates; tie_tolerance, unexplained_shrink: the settings used; calibration_gap, calibration_ci: the
+    candidates; tie_tolerance, unexplained_shrink: the settings used; remaining: gap sensor → {gap, ci, p,
+    significant}, the held-out gap left under the selected effects (two-sided test; a significant gap is
+    'unexplained' only when the shrink is under ``unexplained_shrink`` and some remainder is significant); calibration_gap, calibration_ci: the
     held-out mean of E|X − y| − E|X − X'| (zero-mean when the logs could have come from the model; the
     significance test) and its CI; best_score: the best held-out score of any predictive built (the
     reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
@@ -70,6 +72,7 @@ class GapDetails:
     catch_all: list = field(default_factory=list)
     tie_tolerance: float = 0.1
     unexplained_shrink: float = 0.7
+    remaining: dict = field(default_factory=dict)
     calibration_gap: float = math.nan
     calibration_ci: list = field(default_factory=lambda: [math.nan, math.nan])
     best_score: float = math.nan
