@@ -1,0 +1,149 @@
+"""Parameter searches of the diagnosis: a bounded Nelder–Mead, and the effects' own fits.
+
+Each custom fit ``fit(diag, effect, current, vals) -> vals`` takes a :class:`~finkensim.gap.diagnose.Diagnosis`
+(its ``_objective``, ``_fit_group``, tables and training rows), the effect, the model it is fitted on top of and
+the starting values, and returns the fitted values by parameter name.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import optimize
+
+if TYPE_CHECKING:
+    from .diagnose import Diagnosis
+
+
+def nelder_mead(f, vals, group, x0, f0, maxfev=40):
+    """Nelder–Mead over the parameters ``group`` from x0 (objective f0 there), inside their bounds."""
+    lo = np.array([q.lo for q in group])
+    hi = np.array([q.hi for q in group])
+    g = lambda x: f({**vals, **{q.name: float(c) for q, c in zip(group, np.clip(x, lo, hi))}})  # noqa: E731
+    r = optimize.minimize(g, np.asarray(x0, float), method="Nelder-Mead",
+                          options={"maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-6,
+                                   "initial_simplex": _simplex(np.asarray(x0, float), (hi - lo) / 8, lo, hi)})
+    x = np.clip(r.x, lo, hi) if r.fun < f0 else np.asarray(x0, float)
+    return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
+
+
+def _simplex(x0, step, lo, hi):
+    pts = [np.array(x0, float)]
+    for i in range(len(x0)):
+        p = np.array(x0, float)
+        p[i] = p[i] + step[i] if p[i] + step[i] <= hi[i] else p[i] - step[i]
+        pts.append(p)
+    return np.array(pts)
+
+
+# ---------------------------------------------------------------------- closed-form fits
+
+def _fit_imu_bias(diag: "Diagnosis", effect, current, vals):
+    """Biases by least squares on the windowed residuals around the model's mean draw: the two
+    accelerometer biases (body frame) jointly through each window's rotation, the gyro bias alone."""
+    if "imu" not in diag.tables:
+        return vals
+    tab = diag.tables["imu"]
+    rows = diag.rows_fit["imu"]
+    D, _ = tab.draws(diag.flights, current, rows, diag.seed, diag.M)
+    res = tab.y[rows] - D.mean(axis=1)
+    ch = tab.channel[rows]
+    out = dict(vals)
+    lim = {q.name: (q.lo, q.hi) for q in effect.params}
+    acc = np.isfinite(res) & (ch < 2)
+    if acc.sum() >= 2:
+        A = tab.bias_gain[rows[acc]]
+        sol = np.linalg.lstsq(A, res[acc], rcond=None)[0]
+        out["acc_x"] = float(np.clip(sol[0], *lim["acc_x"]))
+        out["acc_y"] = float(np.clip(sol[1], *lim["acc_y"]))
+    gy = np.isfinite(res) & (ch == 2)
+    if gy.any():
+        out["gyro"] = float(np.clip(np.sum(res[gy] * tab.window_s[rows[gy]]) / np.sum(tab.window_s[rows[gy]] ** 2),
+                                    *lim["gyro"]))
+    return out
+
+
+def _fit_dropout(diag: "Diagnosis", effect, current, vals):
+    """Logistic regression of 'missing' on true distance by maximum likelihood (no draws needed)."""
+    if "ranging" not in diag.tables:
+        return vals
+    tab = diag.tables["ranging"]
+    rows = diag.rows_fit["ranging"]
+    z = tab.missing[rows].astype(float)
+    x = tab.features["true_range"][rows]
+    if z.sum() == 0:
+        return {"a": -12.0, "b": 0.0}
+
+    def nll(ab):
+        s = ab[0] + ab[1] * x
+        return float(np.mean(np.logaddexp(0.0, s) - z * s))
+
+    r = optimize.minimize(nll, np.array([math.log(max(z.mean(), 1e-6) / max(1 - z.mean(), 1e-6)), 0.0]),
+                          method="L-BFGS-B", bounds=[(effect.params[0].lo, effect.params[0].hi),
+                                                     (effect.params[1].lo, effect.params[1].hi)])
+    return {"a": float(r.x[0]), "b": float(r.x[1])}
+
+
+def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
+    """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
+    coarse grid, then refined by a bounded scalar search between the best point's grid neighbours."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    sx0 = current.sigma_xy if current.sigma_xy is not None else float(np.mean([f.sigma_xy for f in diag.flights]))
+    sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
+    v = {"sigma_xy": sx0, "sigma_yaw": sy0}
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    for name, grid in (("sigma_xy", [0.0, 0.001, 0.002, 0.004, 0.007, 0.012, 0.02, 0.035, 0.05]),
+                       ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
+        cands = sorted(set(grid) | {v[name]})
+        scores = [f({**v, name: c}) for c in cands]
+        i = int(np.argmin(scores))
+        v[name] = float(cands[i])
+        lo, hi = cands[max(0, i - 1)], cands[min(len(cands) - 1, i + 1)]
+        if hi > lo:
+            r = optimize.minimize_scalar(lambda c: f({**v, name: float(c)}), bounds=(lo, hi), method="bounded",
+                                         options={"xatol": 0.02 * (hi - lo), "maxiter": 10})
+            if r.fun < scores[i]:
+                v[name] = float(r.x)
+    return v
+
+
+def _fit_latency(diag: "Diagnosis", effect, current, vals):
+    """Per sensor, a search over whole log samples between the bounds (s): every ``stride``-th lag first
+    (about 16 candidates), then each lag within ``stride`` of the best. The CRPS uses common random numbers, so
+    it is a deterministic function of the lag; the refinement catches a minimum between coarse points."""
+    dt = min(f.dt for f in diag.flights)
+    out = dict(vals)
+    for prm in effect.params:
+        if prm.name not in diag.tables:
+            continue
+        f = lambda k: diag._objective(effect, current, [prm.name], {**out, prm.name: k * dt})  # noqa: E731
+        lo, hi = math.ceil(prm.lo / dt - 1e-9), math.floor(prm.hi / dt + 1e-9)
+        stride = max(1, (hi - lo) // 16)
+        start = int(round(out[prm.name] / dt))
+        scores = {k: f(k) for k in sorted(set(range(0, hi + 1, stride)) | set(range(0, lo - 1, -stride)) | {start})
+                  if lo <= k <= hi}
+        best = min(scores, key=scores.get)
+        for k in range(max(lo, best - stride + 1), min(hi, best + stride - 1) + 1):
+            if k not in scores:
+                scores[k] = f(k)
+        best = min(scores, key=lambda k: (scores[k], abs(k)))
+        out[prm.name] = best * dt
+    return out
+
+
+def _fit_bulge(diag: "Diagnosis", effect, current, vals):
+    """Amplitude and reach first with the plates following at once (grid, then Nelder–Mead), then a few
+    response times with those fixed, then all three together from the best of them."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    amp, reach, resp = effect.params
+    v = diag._fit_group(effect, current, sensors, vals, [amp, reach])
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    cands = [{**v, "response": r} for r in sorted({v["response"], 0.0, 0.3, 0.8, 1.5})]
+    scores = [f(c) for c in cands]
+    i = int(np.argmin(scores))
+    best = cands[i]
+    return nelder_mead(f, best, [amp, reach, resp], [best[q.name] for q in (amp, reach, resp)], scores[i])
+
+
+CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
