@@ -132,3 +132,28 @@ def test_gap_validate_names_bad_cases_and_executor_options(extra, named, capsys)
     assert main(["gap-validate", *extra]) == 2
     err = capsys.readouterr().err
     assert named in err and "Traceback" not in err
+
+
+def _thread_counts():
+    import importlib
+
+    import numba
+    from threadpoolctl import threadpool_info
+
+    importlib.import_module("sklearn.ensemble")  # loads scikit-learn's OpenMP pool after the worker started
+
+    return numba.get_num_threads(), {pool["num_threads"] for pool in threadpool_info()}
+
+
+def test_process_workers_compute_on_one_thread():
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from finkensim.gap.validate_sweep import _worker_init
+
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_worker_init, initargs=(os.getpid(),)) as pool:
+        numba_threads, pool_threads = pool.submit(_thread_counts).result()
+    assert numba_threads == 1
+    assert pool_threads <= {1}

@@ -37,6 +37,27 @@ def load_done(path: Path) -> dict:
     return done
 
 
+def _worker_init(parent_pid: int) -> None:
+    """A process-pool worker: ends with the sweep, and computes on one thread. The pool already runs one trial per
+    core; numba's and scikit-learn's own thread pools on top of it would oversubscribe the cores. Every ``prange``
+    of the diagnosis is per element (no reductions), so results do not depend on the thread count."""
+    import os
+
+    import numba
+
+    from ..sweep.executors import die_with_parent
+
+    die_with_parent(parent_pid)
+    numba.set_num_threads(1)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # libraries loaded later
+        os.environ[var] = "1"
+    try:  # libraries loaded already
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # scikit-learn (which brings it) is optional; without it there is no OpenMP pool to limit
+        return
+    threadpool_limits(1)
+
+
 def _one(job: tuple) -> dict:
     case, seed, flights, duration, conventions = job
     row = run_case(case, seed, n_flights=flights, duration=duration,
@@ -53,11 +74,9 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
     if executor == "process":
         import os
 
-        from ..sweep.executors import die_with_parent
-
-        # the workers end with this process, however it ends (SIGKILL included)
+        # the workers end with this process, however it ends (SIGKILL included), and use one thread each
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=die_with_parent, initargs=(os.getpid(),))
+                                   initializer=_worker_init, initargs=(os.getpid(),))
         finished = False
         try:
             futs = [pool.submit(_one, j) for j in jobs]
