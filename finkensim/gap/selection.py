@@ -48,11 +48,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     score_before = float(np.mean([np.nanmean(c) for c in base_scores.values()]))
     # significance per sensor (Bonferroni over sensors): a gap in one sensor is not diluted by the
     # noise of the others
-    per_sensor = {}
-    for s in gap_vals:
-        m, ci_s, p_s = diag.overall({s: gap_vals[s]}, {s: rows_ho[s]})
-        per_sensor[s] = {"gap": m, "ci": list(ci_s), "p": p_s,
-                         "significant": bool(np.isfinite(p_s) and p_s < cfg.alpha / len(gap_vals) and m > cfg.margin)}
+    per_sensor = _sensor_gaps(diag, gap_vals, rows_ho, list(gap_vals), len(gap_vals), cfg)
     gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
     significant = bool(gap_sensors)
 
@@ -135,7 +131,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                "significant_gap": significant}
     # spec: 'unexplained' means a significant gap *remains*; a shrink under the threshold whose remainder cannot be
     # told from zero (a small gap measured with little power) is an explanation as good as the data can show
-    remaining = _remaining_gaps(diag, cur_gaps, rows_ho, gap_sensors, len(gap_vals), cfg) if added else {}
+    remaining = _sensor_gaps(diag, cur_gaps, rows_ho, gap_sensors, len(gap_vals), cfg, remainder=True) if added else {}
     remains = not added or any(r["significant"] for r in remaining.values())
     if significant and (not added or (total_shrink < cfg.unexplained_shrink and remains)):
         verdict.update(unexplained=True, shrink_heldout=total_shrink if added else 0.0)
@@ -176,14 +172,20 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                      correction=correction_block, details=details)
 
 
-def _remaining_gaps(diag, gaps: dict, rows_ho: dict, sensors, n_sensors: int, cfg) -> dict:
-    """Per gap sensor, the held-out calibration gap left under the selected effects: {gap, ci, p, significant}.
+def _sensor_gaps(diag, gaps: dict, rows_ho: dict, sensors, n_sensors: int, cfg, remainder: bool = False) -> dict:
+    """Per sensor, the held-out calibration gap and its test: {gap, ci, p, significant}.
 
-    Significant as the configured model's gap was (Bonferroni over the ``n_sensors`` compared, beyond
-    ``gap.margin``), but two-sided: a predictive made too wide leaves a negative gap, which is not an explanation."""
+    Significant: p < ``gap.alpha`` / ``n_sensors`` (Bonferroni over the sensors compared) and beyond ``gap.margin``.
+    The configured model's gap is tested one-sided (a positive gap) and unknown power (too few blocks) is not
+    significant. ``remainder=True`` tests what selected effects leave: two-sided, since a predictive made too wide
+    leaves a negative gap, which is not an explanation, and unknown power counts as significant."""
     out = {}
     for s in sensors:
         m, ci, p_pos = diag.overall({s: gaps[s]}, {s: rows_ho[s]})
+        if not remainder:
+            sig = bool(np.isfinite(p_pos) and p_pos < cfg.alpha / n_sensors and m > cfg.margin)
+            out[s] = {"gap": m, "ci": list(ci), "p": p_pos, "significant": sig}
+            continue
         p = 2.0 * min(p_pos, 1.0 - p_pos) if np.isfinite(p_pos) else math.nan
         out[s] = {"gap": m, "ci": list(ci), "p": p,
                   "significant": bool(not np.isfinite(p) or (p < cfg.alpha / n_sensors and abs(m) > cfg.margin))}
