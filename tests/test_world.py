@@ -439,3 +439,53 @@ def test_broadcastable_commands_are_accepted(world_and_state):
     full = world.step(state, np.broadcast_to([0.3, -0.2], (2, 6, 2)), np.full((2, 6), 0.1))
     _assert_states_equal(world.step(state, [0.3, -0.2], 0.1), full)
     assert isinstance(full, WorldState)
+
+
+# --------------------------------------------------------------------------- known answers of the copter model
+# The continuous model (DESIGN "copters"): dv/dt = (v_cmd − v)/τ_v, dω/dt = (ω_cmd − ω)/τ_ψ, dp/dt = v, dψ/dt = ω,
+# with |dv/dt| ≤ max_accel. These tests compare the engine with the closed-form solutions, not with a restated
+# discretisation: the lag factor 1 − exp(−dt/τ) is exact at the sample times for a command held over the step,
+# and the position (a right Riemann sum of an increasing velocity) lies above the exact integral by less than
+# one step's velocity change times dt summed, i.e. by at most |v_cmd|·dt.
+
+def _lone_copter(**extra):
+    cfg = Config().replace({"copters.n": 1, "walls.bending": False, "simulation.dt": 0.01,
+                            "copters.max_speed": 5.0, **extra})
+    world = World(cfg)
+    state = world.init(n_envs=1, seed=0, positions=np.array([[[1.5, 2.0]]]), yaw=np.zeros((1, 1)))
+    return world, state
+
+
+def test_velocity_and_position_follow_the_first_order_lag_in_closed_form():
+    tau, dt, c = 0.3, 0.01, np.array([0.2, -0.1])
+    world, state = _lone_copter(**{"copters.velocity_tau": tau, "copters.max_accel": 1000.0})
+    p0 = state.pos[0, 0].copy()
+    for k in range(1, 101):
+        state = world.step(state, c[None, None, :])
+        t = k * dt
+        np.testing.assert_allclose(state.vel[0, 0], c * (1.0 - math.exp(-t / tau)), rtol=0, atol=1e-12)
+        exact = p0 + c * (t - tau * (1.0 - math.exp(-t / tau)))
+        err = (state.pos[0, 0] - exact) * np.sign(c)
+        assert np.all(err >= -1e-12) and np.all(err <= np.abs(c) * dt + 1e-12), (k, err)
+
+
+def test_acceleration_limit_gives_a_linear_ramp_to_the_command():
+    a_max, dt, c = 0.5, 0.01, np.array([0.3, 0.4])  # |c| = 0.5 m/s, reached after 1 s
+    world, state = _lone_copter(**{"copters.velocity_tau": 0.0, "copters.max_accel": a_max})
+    for k in range(1, 151):
+        state = world.step(state, c[None, None, :])
+        speed = min(a_max * k * dt, 0.5)
+        np.testing.assert_allclose(state.vel[0, 0], c / 0.5 * speed, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(np.hypot(*state.acc[0, 0]), a_max if k * dt <= 1.0 + 1e-9 else 0.0, atol=1e-9)
+
+
+def test_yaw_rate_follows_its_lag_and_yaw_its_integral_in_closed_form():
+    tau, dt, w = 0.2, 0.01, 1.0  # rad/s, below the default max_yaw_rate
+    world, state = _lone_copter(**{"copters.yaw_tau": tau})
+    assert w < math.radians(world.cfg.copters.max_yaw_rate_deg)
+    for k in range(1, 101):
+        state = world.step(state, np.zeros((1, 1, 2)), np.full((1, 1), w))
+        t = k * dt
+        assert state.yaw_rate[0, 0] == pytest.approx(w * (1.0 - math.exp(-t / tau)), abs=1e-12)
+        exact = w * (t - tau * (1.0 - math.exp(-t / tau)))
+        assert 0.0 <= state.yaw[0, 0] - exact <= w * dt + 1e-12

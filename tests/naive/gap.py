@@ -1,4 +1,14 @@
-"""Plain NumPy references for the gap-diagnosis kernels (slow, readable; tests only)."""
+"""Plain NumPy references for the gap-diagnosis kernels (slow, readable; tests only).
+
+Each is written from its definition with a different structure from the kernel: the ensemble terms by brute force
+over all member pairs (the kernel sorts), cross-talk paths and line-of-sight clearances by loops over every copter
+and sonar (the kernels cull), IMU windows from exact poses, and the bulge's first-order lag as the exact solution of
+its ODE (the kernel runs a recursion).
+
+What it shares and why: ``sonar_reading_draws`` takes the reading draws from ``tests.naive.ultrasonic.naive_measured``
+and the counter-based numbers of ``finkensim.kernels.rng`` in the diagnosis's documented layout (draw m uses block m of
+the reading's STREAM_EFFECT numbers): the error model is the simulator's (one model), so this checks the diagnosis's
+bookkeeping, not the model. The CRPS itself is checked against ``scoringrules`` (``tests/test_gap_censoring.py``)."""
 from __future__ import annotations
 
 import math
