@@ -39,6 +39,10 @@ MUTATIONS = {
         "finkensim/arena.py", "    for _ in range(hp.substeps):\n        for q in range(n_on):\n",
         "    for _ in range(hp.substeps - 1):\n        for q in range(n_on):\n", ["tests/test_arena.py"],
         "one hinge substep too few in the engine's wall step"),
+    "velocity_lag_euler": (
+        "finkensim/copters.py", "    return 1.0 if tau <= 0.0 else 1.0 - np.exp(-dt / tau)\n",
+        "    return 1.0 if tau <= 0.0 else min(1.0, dt / tau)\n", ["tests/test_world.py"],
+        "the copters' first-order lag discretised by explicit Euler instead of exactly"),
 }
 
 
