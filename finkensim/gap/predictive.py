@@ -61,24 +61,37 @@ def _gather(tab, flights, rows, ideal_fn, M):
     """Per-row ideal draws, each (len(rows), M), from per-flight arrays computed on the needed samples.
 
     ideal_fn(fl, u) → tuple of arrays shaped (len(u), N, X, G) for the sorted unique sample positions
-    u that the rows need (X the channel axis). Draw m uses geometry column m % G.
+    u that the rows need (X the channel axis). Draw m uses geometry column m % G. The rows' split by
+    flight (``tab.splits``) and the gathered result (``tab.gathered``) are cached: a fit asks for the same rows
+    many times, and for the same ideal arrays whenever its parameter leaves the geometry alone.
     """
+    rk = _rows_key(rows)
+    parts = []
+    for fl in flights:
+        key = ("split", rk, rows.size, fl.index)
+        split = tab.splits.get(key)
+        if split is None:
+            sel = np.nonzero(tab.flight[rows] == fl.index)[0]
+            r = rows[sel]
+            u = np.unique(tab.sample[r])
+            split = tab.splits.put(key, (sel, u, np.searchsorted(u, tab.sample[r]), tab.copter[r], tab.channel[r]))
+        if split[0].size:
+            parts.append((split, ideal_fn(fl, split[1])))
+    # the cached value holds the ideal arrays themselves, so their ids cannot be reused while it lives
+    key = ("gather", rk, rows.size, M) + tuple(id(a) for _, arrays in parts for a in arrays)
+    hit = tab.gathered.get(key)
+    if hit is not None:
+        return hit[1], hit[2]
     outs = None
     period = np.ones(rows.size, dtype=np.int64)
-    for fl in flights:
-        sel = np.nonzero(tab.flight[rows] == fl.index)[0]
-        if sel.size == 0:
-            continue
-        r = rows[sel]
-        u = np.unique(tab.sample[r])
-        arrays = ideal_fn(fl, u)
+    for (sel, _, pos, copter, channel), arrays in parts:
         if outs is None:
             outs = [np.empty((rows.size, M), dtype=a.dtype) for a in arrays]
-        pos = np.searchsorted(u, tab.sample[r])
         for o, a in zip(outs, arrays):
             cols = np.arange(M) % a.shape[-1]
-            o[sel] = a[pos, tab.copter[r], tab.channel[r]][:, cols]
+            o[sel] = a[pos, copter, channel][:, cols]
         period[sel] = arrays[0].shape[-1]
+    tab.gathered.put(key, ([arrays for _, arrays in parts], outs, period))
     return outs, period
 
 
@@ -104,7 +117,9 @@ class Table:
     channel_names: list
     seconds: np.ndarray = None  # time since the flight's start, s
     missing: np.ndarray | None = None  # ranging: (n_all,) bool for the dropout channel
-    cache: LRU = field(default_factory=LRU, repr=False)
+    cache: LRU = field(default_factory=LRU, repr=False)  # ideal arrays per flight and parameters
+    splits: LRU = field(default_factory=lambda: LRU(8), repr=False)  # rows split by flight
+    gathered: LRU = field(default_factory=lambda: LRU(4), repr=False)  # per-row ideal draws (large: few kept)
 
     @property
     def n(self) -> int:

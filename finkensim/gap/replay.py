@@ -243,8 +243,9 @@ _ideal_fn = njit(cache=True)(ideal_env.py_func)
 
 
 @njit(cache=True)
-def _sonar_draw(poses, w, sp, gain, k, m, noise, dist, kind, xt):
-    """One pose draw (m) at sample k: ideal readings into dist/kind (N, S) and cross-talk paths into xt (N, S)."""
+def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, out_dist, out_kind, out_xtalk):
+    """The M pose draws at sample k into row ti of the outputs: the plates (which no pose draw moves) are placed
+    once, the work arrays allocated once."""
     N = poses.pos.shape[1]
     S = sp.mount_yaw.shape[0]
     P = w.plate_a.shape[0]
@@ -254,7 +255,9 @@ def _sonar_draw(poses, w, sp, gain, k, m, noise, dist, kind, xt):
     pb = np.empty((P, 2))
     slots = np.zeros(N, dtype=np.int64)
     buf = np.empty((N, S, 4))
-    draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
+    dist = np.empty((N, S))
+    kind = np.empty((N, S), dtype=np.int64)
+    hit = np.empty((N, S, 2))
     shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
     for p in range(P):
         b = poses.bulge[k, p]
@@ -262,11 +265,15 @@ def _sonar_draw(poses, w, sp, gain, k, m, noise, dist, kind, xt):
         pa[p, 1] += b * w.normal[p, 1]
         pb[p, 0] += b * w.normal[p, 0]
         pb[p, 1] += b * w.normal[p, 1]
-    _ideal_fn(pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, dist, kind, np.empty((N, S, 2)))
-    fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
-    for n in range(N):
-        for s in range(S):
-            xt[n, s] = crosstalk_path(n, s, buf, slots, sp)
+    for m in range(M):
+        draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
+        _ideal_fn(pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, dist, kind, hit)
+        fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
+        for n in range(N):
+            for s in range(S):
+                out_dist[ti, n, s, m] = dist[n, s]
+                out_kind[ti, n, s, m] = kind[n, s]
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sp)
 
 
 @njit(cache=True, parallel=True)
@@ -284,21 +291,8 @@ def sonar_draws(poses, w, sp, gain, times, noise, M, out_dist, out_kind, out_xta
     slot — the slots of draw m use uniform m of each copter's schedule cell, so the ensemble spreads over
     the schedules a random-offset sonar may have used; inf if none.
     """
-    K = times.shape[0]
-    N = poses.pos.shape[1]
-    S = sp.mount_yaw.shape[0]
-    for i in prange(K * M):
-        ti = i // M
-        m = i % M
-        dist = np.empty((N, S))
-        kind = np.empty((N, S), dtype=np.int64)
-        xt = np.empty((N, S))
-        _sonar_draw(poses, w, sp, gain, times[ti], m, noise, dist, kind, xt)
-        for n in range(N):
-            for s in range(S):
-                out_dist[ti, n, s, m] = dist[n, s]
-                out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = xt[n, s]
+    for ti in prange(times.shape[0]):
+        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, ti, out_dist, out_kind, out_xtalk)
 
 
 @njit(cache=True)

@@ -203,8 +203,9 @@ def ranging_batch(positions, beacons, seed, env_ids, step, p, out):
         ranging_env(positions[b], beacons, seed, env_ids[b], step, p, out[b])
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def sample_readings(xs, key, p, out):
-    """out[j]: :func:`ranging_reading` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``."""
-    for j in range(xs.shape[0]):
+    """out[j]: :func:`ranging_reading` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
+    (in parallel: each column's random numbers depend on j alone)."""
+    for j in prange(xs.shape[0]):
         out[j] = ranging_reading(xs[j], key, j, p)
