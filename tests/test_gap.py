@@ -152,13 +152,31 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
     sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
     rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), wall_geometry(arena), sp, 1.0, times,
-                   rp.PoseNoise(0.0, 0.0, 0, 0), 1, dist, kind, xt)
+                   rp.PoseNoise(0.0, 0.0, 0, 0), 1, np.ones((K, N, S), bool), dist, kind, xt)
     d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
     np.testing.assert_array_equal(dist[..., 0], d_sim)
     np.testing.assert_array_equal(kind[..., 0], k_sim)
     for k in range(K):
         ref = naive.crosstalk_paths(pos[k], yaw[k], sm.mount_yaw, 0.0, 3.0, sm.cos_half_angle)
         np.testing.assert_allclose(xt[k, ..., 0], ref, rtol=1e-12)
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 10**6))
+def test_sonar_draws_cast_only_the_needed_rays_and_those_exactly(seed):
+    cfg, arena, pos, yaw, theta = _scene(seed)
+    sp = SonarModel.from_config(cfg)
+    times = np.arange(pos.shape[0], dtype=np.int64)
+    K, N, S, G = times.size, pos.shape[1], 4, 3
+    poses, noise = rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), rp.PoseNoise(0.01, 0.02, seed, 1)
+    full = [np.empty((K, N, S, G)), np.empty((K, N, S, G), np.int8), np.empty((K, N, S, G))]
+    part = [np.empty_like(a) for a in full]
+    rp.sonar_draws(poses, wall_geometry(arena), sp, 1.0, times, noise, G, np.ones((K, N, S), bool), *full)
+    need = np.random.default_rng(seed).random((K, N, S)) < 0.3
+    rp.sonar_draws(poses, wall_geometry(arena), sp, 1.0, times, noise, G, need, *part)
+    for a, b in zip(full, part):
+        np.testing.assert_array_equal(b[need], a[need])
+    assert np.isnan(part[0][~need]).all() and np.isinf(part[2][~need]).all()
 
 
 def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
@@ -174,7 +192,8 @@ def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():
     def reading(gain, bulge):
         d, k, x = np.empty((2, 1, 1, 1)), np.empty((2, 1, 1, 1), np.int8), np.empty((2, 1, 1, 1))
         rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, bulge), wall_geometry(arena), sp, gain,
-                       np.arange(2, dtype=np.int64), rp.PoseNoise(0.0, 0.0, 0, 0), 1, d, k, x)
+                       np.arange(2, dtype=np.int64), rp.PoseNoise(0.0, 0.0, 0, 0), 1, np.ones((2, 1, 1), bool),
+                       d, k, x)
         return d[0, 0, 0, 0]
 
     for g in (0.0, 1.0, 2.0):
@@ -470,3 +489,24 @@ def test_the_configured_models_gap_is_tested_one_sided_and_unknown_power_is_no_g
     assert out["ultrasonic"]["significant"]
     assert not out["imu"]["significant"] and not out["other"]["significant"]
     assert out["imu"]["p"] == 1.0 - 1e-6
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 6), st.integers(1, 4), st.integers(1, 5), st.integers(1, 8), st.integers(1, 24), st.integers(0, 10**6))
+def test_gather_draws_equals_fancy_indexing(K, N, X, G, M, seed):
+    from finkensim.gap.predictive import gather_draws
+
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(K, N, X, G))
+    n_rows = int(rng.integers(1, 30))
+    sel = np.sort(rng.choice(n_rows, size=int(rng.integers(1, n_rows + 1)), replace=False)).astype(np.int64)
+    pos, cop, ch = (rng.integers(0, k, size=sel.size).astype(np.int64) for k in (K, N, X))
+    out = np.full((n_rows, M), np.nan)
+    gather_draws(a, sel, pos, cop, ch, out)
+    ref = np.full((n_rows, M), np.nan)
+    ref[sel] = a[pos, cop, ch][:, np.arange(M) % G]
+    np.testing.assert_array_equal(out, ref)
+    kinds = rng.integers(0, 3, size=(K, N, X, G)).astype(np.int8)
+    out8 = np.zeros((n_rows, M), np.int8)
+    gather_draws(kinds, sel, pos, cop, ch, out8)
+    np.testing.assert_array_equal(out8[sel], kinds[pos, cop, ch][:, np.arange(M) % G])

@@ -10,8 +10,10 @@ the draw index, so a refit with other parameters reuses the same numbers.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit, prange
 
 from ..config import Config
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SCHEDULE_RANDOM_OFFSET, SonarModel
@@ -57,13 +59,36 @@ class LRU:
         return value
 
 
+class RowSplit(NamedTuple):
+    """The rows of one flight in a row set: sel (positions in the row set), u (sorted unique sample positions),
+    pos (each row's index into u), copter, channel, and key (identifies the row set and the flight)."""
+
+    sel: np.ndarray
+    u: np.ndarray
+    pos: np.ndarray
+    copter: np.ndarray
+    channel: np.ndarray
+    key: tuple
+
+
+@njit(cache=True, parallel=True)
+def gather_draws(a, sel, pos, copter, channel, out):
+    """out[sel[i], m] = a[pos[i], copter[i], channel[i], m % G] for every row i of one flight and draw m < M:
+    a (K, N, X, G) per-sample ideal draws, sel/pos/copter/channel (n,) int64, out (n_rows, M)."""
+    G = a.shape[3]
+    M = out.shape[1]
+    for i in prange(sel.shape[0]):
+        for m in range(M):
+            out[sel[i], m] = a[pos[i], copter[i], channel[i], m % G]
+
+
 def _gather(tab, flights, rows, ideal_fn, M):
     """Per-row ideal draws, each (len(rows), M), from per-flight arrays computed on the needed samples.
 
-    ideal_fn(fl, u) → tuple of arrays shaped (len(u), N, X, G) for the sorted unique sample positions
-    u that the rows need (X the channel axis). Draw m uses geometry column m % G. The rows' split by
-    flight (``tab.splits``) and the gathered result (``tab.gathered``) are cached: a fit asks for the same rows
-    many times, and for the same ideal arrays whenever its parameter leaves the geometry alone.
+    ideal_fn(fl, split) → tuple of arrays shaped (len(split.u), N, X, G) for the sorted unique sample positions
+    split.u that the rows need (X the channel axis; :class:`RowSplit`). Draw m uses geometry column m % G. The
+    rows' split by flight (``tab.splits``) and the gathered result (``tab.gathered``) are cached: a fit asks for
+    the same rows many times, and for the same ideal arrays whenever its parameter leaves the geometry alone.
     """
     rk = _rows_key(rows)
     parts = []
@@ -74,9 +99,10 @@ def _gather(tab, flights, rows, ideal_fn, M):
             sel = np.nonzero(tab.flight[rows] == fl.index)[0]
             r = rows[sel]
             u = np.unique(tab.sample[r])
-            split = tab.splits.put(key, (sel, u, np.searchsorted(u, tab.sample[r]), tab.copter[r], tab.channel[r]))
-        if split[0].size:
-            parts.append((split, ideal_fn(fl, split[1])))
+            split = tab.splits.put(key, RowSplit(sel, u, np.searchsorted(u, tab.sample[r]), tab.copter[r],
+                                                 tab.channel[r], key))
+        if split.sel.size:
+            parts.append((split, ideal_fn(fl, split)))
     # the cached value holds the ideal arrays themselves, so their ids cannot be reused while it lives
     key = ("gather", rk, rows.size, M) + tuple(id(a) for _, arrays in parts for a in arrays)
     hit = tab.gathered.get(key)
@@ -84,13 +110,12 @@ def _gather(tab, flights, rows, ideal_fn, M):
         return hit[1], hit[2]
     outs = None
     period = np.ones(rows.size, dtype=np.int64)
-    for (sel, _, pos, copter, channel), arrays in parts:
+    for split, arrays in parts:
         if outs is None:
             outs = [np.empty((rows.size, M), dtype=a.dtype) for a in arrays]
         for o, a in zip(outs, arrays):
-            cols = np.arange(M) % a.shape[-1]
-            o[sel] = a[pos, copter, channel][:, cols]
-        period[sel] = arrays[0].shape[-1]
+            gather_draws(a, split.sel, split.pos, split.copter, split.channel, o)
+        period[split.sel] = arrays[0].shape[-1]
     tab.gathered.put(key, ([arrays for _, arrays in parts], outs, period))
     return outs, period
 
@@ -170,31 +195,38 @@ class SonarTable(Table):
                    features={k: cat(v) for k, v in feats.items()}, channel_names=names, seconds=cat(cols["sec"]))
         return t
 
-    def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
-        """Ideal draws (dist, kind, xtalk), each (len(u), N, S, G), at sample positions u of one flight."""
+    def _ideal(self, p: ModelParams, seed: int, M: int, fl, split: RowSplit):
+        """Ideal draws (dist, kind, xtalk), each (len(split.u), N, S, G), at the sample positions split.u of one
+        flight; only the rays of the split's readings are cast (the others read NaN)."""
         sx, sy, G = pose_sigmas(p, fl, M)
         sp = p.sonar
         if sp.crosstalk & CROSSTALK_GEOMETRIC and sp.schedule == SCHEDULE_RANDOM_OFFSET:
             G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
-        key = ("sonar", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
+        key = ("sonar", split.key, round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9),
                sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range)
         hit = self.cache.get(key)
         if hit is not None:
             return hit
+        u = split.u
         times = np.clip(fl.samples[u] - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
+        need = self.splits.get(("need",) + split.key)
+        if need is None:
+            need = np.zeros((K, N, S), dtype=bool)
+            need[split.pos, split.copter, split.channel] = True
+            self.splits.put(("need",) + split.key, need)
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response), fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G,
-                       dist, kind, xt)
+        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response), fl.walls,
+                       fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
         """Predictive draws (len(rows), M) of the sonar readings ``rows`` under parameters p."""
-        (dist, kind, xt), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+        (dist, kind, xt), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp), M)
         out = np.empty((rows.size, M))
         chan = self.copter[rows] * 64 + self.channel[rows]
         sonar_reading_draws(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, p.sonar, out)
@@ -281,7 +313,7 @@ class RangingTable(Table):
         key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.field_key("ranging"), seed, M)
         hit = self.cache.get(key)
         if hit is None:
-            (x,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+            (x,), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp.u), M)
             # one key per call; the flat index keeps draws aligned with rows and draws (common random numbers)
             y0 = p.ranging.sample(np.minimum(x, p.ranging.max_range).ravel(), seed=seed, env=0, step=0,
                                   copter=0).reshape(x.shape)
@@ -408,7 +440,7 @@ class ImuTable(Table):
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int):
-        (ideal,), period = _gather(self, flights, rows, lambda fl, u: self._ideal(p, seed, M, fl, u), M)
+        (ideal,), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp.u), M)
         ch = self.channel[rows]
         ws = self.window_s[rows]
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral

@@ -28,7 +28,7 @@ from ..flightlog.messages import plural
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
-from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_env, shifted_plates_env,
+from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_ray, shifted_plates_env,
                                      sonar_hit, sonar_poses_env)
 from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
 
@@ -239,13 +239,13 @@ class ReplayPoses(NamedTuple):
     bulge: np.ndarray
 
 
-_ideal_fn = njit(cache=True)(ideal_env.py_func)
+_ideal_ray_fn = njit(cache=True)(ideal_ray.py_func)
 
 
 @njit(cache=True)
-def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, out_dist, out_kind, out_xtalk):
-    """The M pose draws at sample k into row ti of the outputs: the plates (which no pose draw moves) are placed
-    once, the work arrays allocated once."""
+def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kind, out_xtalk):
+    """The M pose draws at sample k into row ti of the outputs, for the rays with need[ti, n, s] (the others get
+    NaN, HIT_NONE, inf): the plates (which no pose draw moves) are placed once, the work arrays allocated once."""
     N = poses.pos.shape[1]
     S = sp.mount_yaw.shape[0]
     P = w.plate_a.shape[0]
@@ -265,19 +265,26 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, out_dist, out_kind, out
         pa[p, 1] += b * w.normal[p, 1]
         pb[p, 0] += b * w.normal[p, 0]
         pb[p, 1] += b * w.normal[p, 1]
+    bands = plate_bands(pa, pb, w.width, w.length)
     for m in range(M):
         draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
-        _ideal_fn(pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, dist, kind, hit)
+        sonar_poses_env(pos_m, yaw_m, sp, buf)
         fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
         for n in range(N):
             for s in range(S):
+                if not need[ti, n, s]:
+                    out_dist[ti, n, s, m] = np.nan
+                    out_kind[ti, n, s, m] = HIT_NONE
+                    out_xtalk[ti, n, s, m] = np.inf
+                    continue
+                _ideal_ray_fn(n, s, pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, bands, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
                 out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sp)
 
 
 @njit(cache=True, parallel=True)
-def sonar_draws(poses, w, sp, gain, times, noise, M, out_dist, out_kind, out_xtalk):
+def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk):
     """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``, computed
     with the simulator's own kernels (:mod:`finkensim.sensors.sonar_kernels`).
 
@@ -289,10 +296,11 @@ def sonar_draws(poses, w, sp, gain, times, noise, M, out_dist, out_kind, out_xta
     (K, N, S, M) m: the shortest emitter → receiver path heard under geometric cross-talk
     (:func:`~finkensim.sensors.sonar_kernels.crosstalk_path`) among the copters firing in the receiver's
     slot — the slots of draw m use uniform m of each copter's schedule cell, so the ensemble spreads over
-    the schedules a random-offset sonar may have used; inf if none.
+    the schedules a random-offset sonar may have used; inf if none. Only the rays with need (K, N, S) bool are
+    cast (a fit scores a subset of the readings); the others read NaN, HIT_NONE and inf.
     """
     for ti in prange(times.shape[0]):
-        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, ti, out_dist, out_kind, out_xtalk)
+        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, ti, need, out_dist, out_kind, out_xtalk)
 
 
 @njit(cache=True)

@@ -29,7 +29,7 @@ from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, norm
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN)
 
-__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "ideal_env", "fire_slot",
+__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "ideal_ray", "ideal_env", "fire_slot",
            "fire_slots_env", "crosstalk_path", "echo_reading", "clamp_reading", "measured_reading",
            "ultrasonic_env", "down_env"]
 
@@ -115,6 +115,23 @@ def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands):
 
 
 @njit(cache=True, inline="always")
+def ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit):
+    """Ideal reading of sonar k of copter n into dist[n, k], kind[n, k], hit[n, k] (as :func:`ideal_env`)."""
+    best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands)
+    if best > sp.max_range:
+        dist[n, k] = sp.max_range
+        kind[n, k] = HIT_NONE
+        if not np.isfinite(best):
+            hx = sonar_buf[n, k, 0] + sp.max_range * sonar_buf[n, k, 2]
+            hy = sonar_buf[n, k, 1] + sp.max_range * sonar_buf[n, k, 3]
+    else:
+        dist[n, k] = best
+        kind[n, k] = bkind
+    hit[n, k, 0] = hx
+    hit[n, k, 1] = hy
+
+
+@njit(cache=True, inline="always")
 def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit):
     """Ideal horizontal readings of one environment.
 
@@ -127,18 +144,7 @@ def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hi
     bands = plate_bands(pa, pb, width, length)
     for n in range(pos_b.shape[0]):
         for k in range(sp.mount_yaw.shape[0]):
-            best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands)
-            if best > sp.max_range:
-                dist[n, k] = sp.max_range
-                kind[n, k] = HIT_NONE
-                if not np.isfinite(best):
-                    hx = sonar_buf[n, k, 0] + sp.max_range * sonar_buf[n, k, 2]
-                    hy = sonar_buf[n, k, 1] + sp.max_range * sonar_buf[n, k, 3]
-            else:
-                dist[n, k] = best
-                kind[n, k] = bkind
-            hit[n, k, 0] = hx
-            hit[n, k, 1] = hy
+            ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit)
 
 
 # ---------------------------------------------------------------------------------------------
