@@ -262,9 +262,16 @@ def test_imu_window_draws_match_reference(b):
     yu = np.cumsum(rng.normal(scale=0.05, size=(T, N)), axis=0)
     times = np.array([10, 20, 39], dtype=np.int64)
     out = np.empty((3, N, 3, 1))
-    rp.imu_window_draws(pos, yu, t, times, h, b, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
+    rp.imu_window_draws(pos, yu, t, times, h, b, rp.PoseNoise(0.0, 0.0, 0, 0), 1, np.ones((3, N), bool), out)
     for i, k in enumerate(times):
         np.testing.assert_allclose(out[i, :, :, 0], naive.imu_windows(pos, yu, t, k, h, b), rtol=1e-10, atol=1e-12)
+    # with pose noise, only the needed copters are computed, and those exactly as without the mask
+    full, part = np.empty((3, N, 3, 4)), np.empty((3, N, 3, 4))
+    need = np.array([[True, False, True], [False, False, True], [True, True, False]])
+    rp.imu_window_draws(pos, yu, t, times, h, b, rp.PoseNoise(0.01, 0.02, 3, 1), 4, np.ones((3, N), bool), full)
+    rp.imu_window_draws(pos, yu, t, times, h, b, rp.PoseNoise(0.01, 0.02, 3, 1), 4, need, part)
+    np.testing.assert_array_equal(part[need], full[need])
+    assert np.isnan(part[~need]).all()
 
 
 @pytest.mark.parametrize("err,flags,p_const,q_hear,scale,bias", [(0, 0, 0.0, 1.0, 1.0, 0.0), (1, 0, 0.0, 1.0, 1.1, 0.05),

@@ -427,20 +427,27 @@ class ImuTable(Table):
         t.window, t.baseline = imu_steps(cfg, flights[0].dt)
         return t
 
-    def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
+    def _ideal(self, p: ModelParams, seed: int, M: int, fl, split: RowSplit):
+        """Window integrals (len(split.u), N, 3, G) at the sample positions split.u of one flight, for the copters
+        of the split's readings (the others read NaN)."""
         sx, sy, G = pose_sigmas(p, fl, M)
         h, b = self.window, self.baseline
-        key = ("imu", fl.index, _rows_key(u), round(sx, 9), round(sy, 9), lag_steps(p.latency_imu, fl.dt), G, h, b)
+        key = ("imu", split.key, round(sx, 9), round(sy, 9), lag_steps(p.latency_imu, fl.dt), G, h, b)
         hit = self.cache.get(key)
         if hit is None:
-            times = np.clip(fl.samples[u] - lag_steps(p.latency_imu, fl.dt), h + b, fl.t.size - 1)
+            times = np.clip(fl.samples[split.u] - lag_steps(p.latency_imu, fl.dt), h + b, fl.t.size - 1)
+            need = self.splits.get(("need",) + split.key)
+            if need is None:
+                need = np.zeros((times.size, fl.n_copters), dtype=bool)
+                need[split.pos, split.copter] = True
+                self.splits.put(("need",) + split.key, need)
             out = np.empty((times.size, fl.n_copters, 3, G))
-            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, b, fl.noise(sx, sy, seed), G, out)
+            rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, b, fl.noise(sx, sy, seed), G, need, out)
             hit = self.cache.put(key, (out,))
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int):
-        (ideal,), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp.u), M)
+        (ideal,), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp), M)
         ch = self.channel[rows]
         ws = self.window_s[rows]
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral

@@ -461,7 +461,7 @@ def ranging_clearance(pos, times, out):
 # --------------------------------------------------------------------------------------- imu
 
 @njit(cache=True, parallel=True)
-def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, out):
+def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, need, out):
     """Window-integrated ideal IMU values for M pose draws: out (K, N, 3, M) =
     (Δv_x, Δv_y) m/s world frame and Δψ rad over the h steps ending at each time in ``times``
     (each time ≥ h + b).
@@ -471,7 +471,7 @@ def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, out):
     trapezoid weights w (a box of h convolved with a box of b, divided by b; b = 1: the plain window sum),
     and Δψ = ψ_k − ψ_{k−h} is Σ ω_j dt_j: integrating the IMU instead of differentiating the poses twice
     avoids amplifying tracking noise by 1/dt², and the baseline divides the velocities' tracking noise by b.
-    noise: :class:`PoseNoise`.
+    noise: :class:`PoseNoise`. Only copters with need (K, N) bool are computed; the others read NaN.
     """
     K = times.shape[0]
     N = pos.shape[1]
@@ -484,6 +484,11 @@ def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, out):
         d1 = t[k] - t[k - b]
         d0 = t[k0] - t[k0 - b]
         for n in range(N):
+            if not need[ti, n]:
+                out[ti, n, 0, m] = np.nan
+                out[ti, n, 1, m] = np.nan
+                out[ti, n, 2, m] = np.nan
+                continue
             x1, y1, w1 = _pose_draw(pos, yaw_unwrapped, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
             x0, y0, _ = _pose_draw(pos, yaw_unwrapped, k - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
             a1, b1, w0 = _pose_draw(pos, yaw_unwrapped, k0, n, m, sigma_xy, sigma_yaw, seed, flight_id)
