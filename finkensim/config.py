@@ -278,7 +278,7 @@ class GapConfig(_Section):
     tracking_sigma_yaw: float = _f(-1.0, "rad", -1.0, 3.2, doc="yaw tracking noise; -1 = from the log's meta, else 0")
     draws: int = _f(24, "", 4, 1000, doc="predictive draws per reading (ensemble size M)")
     max_samples_per_flight: int = _f(3000, "", 10, 10**7, doc="time samples used per flight (evenly strided)")
-    fit_max_readings: int = _f(40000, "", 100, 10**8, doc="training readings per sensor used when fitting effects")
+    fit_max_readings: int = _f(20000, "", 100, 10**8, doc="training readings per sensor used when fitting effects (a random subset; held-out scores use every reading)")
     n_boot: int = _f(300, "", 50, 100000, doc="block-bootstrap replicates")
     block_seconds: float = _f(10.0, "s", 0.0, 1e6, lo_open=True, doc="length of a bootstrap block (contiguous time)")
     n_bins: int = _f(5, "", 2, 100, doc="quantile bins per continuous feature")
