@@ -238,6 +238,19 @@ def test_bulge_displacement_is_amplitude_times_a_gaussian_of_the_plate_distance(
         rp.bulge_displacement(d, 0.1, 0.0)
 
 
+@pytest.mark.parametrize("shape", [1.0, 2.0, 4.0, 9.5])
+def test_bulge_shape_sets_how_sharply_the_bulge_ends(shape):
+    d = np.linspace(0.0, 1.5, 31)[None, :]
+    got = rp.bulge_displacement(d, 0.2, 0.6, 0.0, None, shape)
+    np.testing.assert_allclose(got, 0.2 * np.exp(-(d / 0.6) ** shape), rtol=1e-14)
+    assert got[0, 0] == 0.2 and got[0, 12] == pytest.approx(0.2 / math.e)  # d = reach: amplitude / e for any shape
+    if shape > 2:  # flatter inside reach, smaller beyond it than the Gaussian
+        gauss = rp.bulge_displacement(d, 0.2, 0.6)
+        assert (got[0, 1:12] > gauss[0, 1:12]).all() and (got[0, 13:] < gauss[0, 13:]).all()
+    with pytest.raises(ValueError, match="shape"):
+        rp.bulge_displacement(d, 0.1, 0.6, 0.0, None, 0.0)
+
+
 def test_ranging_draws_and_clearance_match_references():
     _, _, pos, yaw, _ = _scene(7, n=6)
     times = np.arange(pos.shape[0], dtype=np.int64)

@@ -51,13 +51,19 @@ def test_foreign_effect_is_unexplained_located_and_corrected(case):
     assert rep.details.correction.partial_dependence[c["sensor"]]  # drawn in correction.png
 
 
-def test_two_effects_at_once_are_both_named():
-    logs, cfg, _ = generate(get_case("sonar_bias+latency"), SEED, n_flights=2, duration=30.0)
+# the second: a weak effect beside a dominant one (geometric cross-talk heard at every mutual view), which removes
+# little of the configured model's gap and comes in through gap.accept_improvement
+@pytest.mark.parametrize("pair", ["sonar_bias+latency", "crosstalk_geometric+sonar_bias"])
+def test_two_effects_at_once_are_both_named(pair):
+    logs, cfg, _ = generate(get_case(pair), SEED, n_flights=2, duration=30.0)
     rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg.replace(SMALL)))
     v = rep["verdict"]
-    assert set(v["effects"]) == {"sonar_bias", "latency"} and v["effect"] == v["effects"][0], v
+    assert set(v["effects"]) == set(pair.split("+")) and v["effect"] == v["effects"][0], v
     assert v["shrink_heldout"] <= 1.0
-    assert rep.details.waterfall[-1]["step"] == "joint refit"
+    # the joint refit is kept when it lowers the training score; else the waterfall ends with the last effect added
+    assert rep.details.waterfall[-1]["step"] in ("joint refit", f"+ {v['effects'][-1]}")
+    if pair == "sonar_bias+latency":
+        assert rep.details.waterfall[-1]["step"] == "joint refit"
 
 
 # another tool's conventions: flown at 1 m (the configured hinge gives the walls no lever there), sonars 10 cm off

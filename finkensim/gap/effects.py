@@ -102,13 +102,16 @@ def _beam(base: ModelParams, v: dict) -> ModelParams:
 
 register(Effect(
     "wall_bulge", ("ultrasonic",), (Param("amplitude", -0.1, 0.5, unit="m"), Param("reach", 0.05, 1.5, unit="m"),
-                                    Param("response", 0.0, 3.0, unit="s")),
-    lambda b, v: b.with_(bulge_amplitude=v["amplitude"], bulge_reach=v["reach"], bulge_response=v["response"]),
+                                    Param("response", 0.0, 3.0, unit="s"), Param("shape", 1.0, 12.0)),
+    lambda b, v: b.with_(bulge_amplitude=v["amplitude"], bulge_reach=v["reach"], bulge_response=v["response"],
+                         bulge_shape=v["shape"]),
     doc="curtain plates bend toward nearby copters (Bernoulli) beyond the configured wall model: each plate "
-        "moves toward the arena by amplitude·exp(−(d/reach)²), d its distance to the nearest copter body, "
-        "following it with a first-order response time (fitted from the readings, so it works at any altitude, "
-        "hinge height, or with rigid configured walls)",
-    initial=lambda b: {"amplitude": b.bulge_amplitude, "reach": b.bulge_reach, "response": b.bulge_response},
+        "moves toward the arena by amplitude·exp(−(d/reach)^shape), d its distance to the nearest copter body "
+        "(shape 2 a Gaussian, larger a flat bulge that ends sharply near reach), following it with a first-order "
+        "response time (fitted from the readings, so it works at any altitude, hinge height, or with rigid "
+        "configured walls)",
+    initial=lambda b: {"amplitude": b.bulge_amplitude, "reach": b.bulge_reach, "response": b.bulge_response,
+                       "shape": b.bulge_shape},
     expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence")))
 register(Effect(
     "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),

@@ -134,16 +134,18 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
 
 def _fit_bulge(diag: "Diagnosis", effect, current, vals):
     """Amplitude and reach first with the plates following at once (grid, then Nelder–Mead), then a few
-    response times with those fixed, then all three together from the best of them."""
+    shapes, then a few response times, each with the others fixed, then all four together from the best."""
     sensors = [s for s in effect.sensors if s in diag.tables]
-    amp, reach, resp = effect.params
+    amp, reach, resp, shape = effect.params
     v = diag._fit_group(effect, current, sensors, vals, [amp, reach])
     f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
-    cands = [{**v, "response": r} for r in sorted({v["response"], 0.0, 0.3, 0.8, 1.5})]
-    scores = [f(c) for c in cands]
-    i = int(np.argmin(scores))
-    best = cands[i]
-    return nelder_mead(f, best, [amp, reach, resp], [best[q.name] for q in (amp, reach, resp)], scores[i])
+    for name, grid in (("shape", (2.0, 4.0, 8.0)), ("response", (0.0, 0.3, 0.8, 1.5))):
+        cands = [{**v, name: c} for c in sorted({v[name], *grid})]
+        scores = [f(c) for c in cands]
+        i = int(np.argmin(scores))
+        v = cands[i]
+    group = [amp, reach, resp, shape]
+    return nelder_mead(f, v, group, [v[q.name] for q in group], scores[i], maxfev=60)
 
 
 CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

@@ -38,9 +38,10 @@ class ModelParams:
 
     sonar, ranging, imu: the simulator's sensor records (from the config). sigma_xy m, sigma_yaw rad:
     tracking noise of the logged poses (``None`` = each flight's own). wall_gain: factor on the modelled
-    plate displacement (1 with bending walls, 0 with rigid ones). bulge_amplitude m, bulge_reach m: an extra
-    displacement ``amplitude · exp(−(d/reach)²)`` of each plate toward the arena, d its distance to the nearest
-    copter body (the ``wall_bulge`` effect); bulge_response s: the plates follow that displacement with this
+    plate displacement (1 with bending walls, 0 with rigid ones). bulge_amplitude m, bulge_reach m, bulge_shape: an
+    extra displacement ``amplitude · exp(−(d/reach)^shape)`` of each plate toward the arena, d its distance to the
+    nearest copter body (the ``wall_bulge`` effect; shape 2 a Gaussian, larger a flat bulge that ends sharply near
+    reach); bulge_response s: the plates follow that displacement with this
     first-order time constant (0: at once). beam_rays: rays of a cone beam when an
     effect widens a single-ray beam. latency_* s: readings describe the world that much earlier (negative:
     later, as after a clock offset that was too early); each flight applies it as whole log steps (:func:`lag_steps`). nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
@@ -58,6 +59,7 @@ class ModelParams:
     bulge_amplitude: float = 0.0
     bulge_reach: float = 0.3
     bulge_response: float = 0.0
+    bulge_shape: float = 2.0
     beam_rays: int = 7
     latency_sonar: float = 0.0
     nlos_bias: float = 0.0
@@ -103,7 +105,7 @@ class ModelParams:
 
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
-    "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "beam_rays", "latency_sonar"),
+    "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar"),
     "ranging": ("ranging", "nlos_bias", "nlos_width", "dropout_a", "dropout_b", "latency_ranging"),
     "imu": ("imu", "acc_bias_x", "acc_bias_y", "gyro_bias", "latency_imu"),
 }

@@ -203,7 +203,7 @@ class SonarTable(Table):
         if sp.crosstalk & CROSSTALK_GEOMETRIC and sp.schedule == SCHEDULE_RANDOM_OFFSET:
             G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
         key = ("sonar", split.key, round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
-               round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9),
+               round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9), round(p.bulge_shape, 9),
                sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range)
         hit = self.cache.get(key)
@@ -220,7 +220,7 @@ class SonarTable(Table):
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
-        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response), fl.walls,
+        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape), fl.walls,
                        fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt)
         return self.cache.put(key, (dist, kind, xt))
 

@@ -75,12 +75,13 @@ class Flight:
         """The flight as the sonar kernels see it: logged poses and replayed plate angles, no extra bulge."""
         return self.poses_with_bulge(0.0, 1.0)
 
-    def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0) -> "ReplayPoses":
-        """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)²)`` m,
+    def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0,
+                         shape: float = 2.0) -> "ReplayPoses":
+        """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)^shape)`` m,
         d its distance to the nearest copter body, followed with time constant ``response`` s (the
-        ``wall_bulge`` effect; amplitude m, reach m > 0)."""
+        ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0)."""
         return ReplayPoses(self.pos, self.yaw, self.theta_unit,
-                           bulge_displacement(self.plate_distance, amplitude, reach, response, self.t))
+                           bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape))
 
     @property
     def walls(self) -> WallGeometry:
@@ -118,18 +119,21 @@ def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
 
 
 def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float, response: float = 0.0,
-                       t: np.ndarray | None = None) -> np.ndarray:
+                       t: np.ndarray | None = None, shape: float = 2.0) -> np.ndarray:
     """Displacement (T, S_p) m of each plate, plate_distance (T, S_p) m from the nearest copter body: the target
-    ``amplitude · exp(−(d/reach)²)`` — the ``wall_bulge`` effect's form, set by what a log shows (how far
-    readings shorten, how close a copter must come, how slowly the curtain follows), not by hinge height or
-    altitude. With ``response`` τ > 0 s the plates follow the target as a first-order lag on the log's times
+    ``amplitude · exp(−(d/reach)^shape)`` — the ``wall_bulge`` effect's form, set by what a log shows (how far
+    readings shorten, how close a copter must come, how sharply the bulge ends, how slowly the curtain follows),
+    not by hinge height or altitude. shape 2 is a Gaussian; a larger one a flat bulge that ends sharply near
+    reach (a hinged plate driven toward a near-constant angle within a threshold distance looks like that). With ``response`` τ > 0 s the plates follow the target as a first-order lag on the log's times
     t (T,) s: x_k = x_{k−1} + (1 − exp(−Δt_k/τ))·(target_k − x_{k−1}), starting at rest on the first target (a
     curtain keeps bending after the copter has passed, as the hinge does)."""
     if amplitude == 0.0:
         return np.zeros_like(plate_distance)
     if not reach > 0:
         raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
-    target = amplitude * np.exp(-(plate_distance / reach) ** 2)
+    if not shape > 0:
+        raise ValueError(f"bulge shape = {shape!r}: expected > 0")
+    target = amplitude * np.exp(-(plate_distance / reach) ** shape)
     if response == 0.0:
         return target
     if not response > 0 or t is None or t.shape[0] != target.shape[0]:

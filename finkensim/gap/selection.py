@@ -2,8 +2,9 @@
 and the report (``spec/gap-report.md``).
 
 Every candidate effect is fitted on the training flights and scored on the held-out ones; the best is
-added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap, up to
-``max_added`` effects. The verdict names the first effect added when the selected effects remove at least
+added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap — or, after
+the first, improves the held-out score by ``gap.accept_improvement`` with a p-value that survives Bonferroni over the
+candidates — up to ``max_added`` effects. The verdict names the first effect added when the selected effects remove at least
 ``gap.unexplained_shrink`` of the gap on the sensors where it is significant, else ``unexplained``.
 """
 from __future__ import annotations
@@ -88,8 +89,14 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         # a sensor with a small gap is not diluted by a large gap elsewhere)
         gain = _share(cur_gaps, best.rows_gap, gap_sensors, per_sensor)
         score_gain = _share(cur_scores, best.rows_score, gap_sensors, per_sensor)
-        diag.say(f"  candidate {best.name}: improvement p = {imp_p:.3g}, gap gain {gain:.3f}, score gain {score_gain:.3f}")
-        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and max(gain, score_gain) >= cfg.accept_gain):
+        diag.say(f"  candidate {best.name}: improvement {imp:.4f} (p = {imp_p:.3g}), gap gain {gain:.3f}, score gain "
+                 f"{score_gain:.3f}")
+        material = max(gain, score_gain) >= cfg.accept_gain
+        # a weaker effect beside a dominant one removes little of the configured model's gap, yet is real when its
+        # own improvement is clear: after the first effect, an improvement of at least gap.accept_improvement that
+        # survives Bonferroni over the candidates it was picked from also counts
+        further = bool(added) and imp >= cfg.accept_improvement and np.isfinite(imp_p) and imp_p < cfg.alpha / len(pool)
+        if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and (material or further)):
             break
         if not added:
             ambiguous = _near_ties(pool, best, cur_score, cfg.tie_tolerance)
