@@ -312,7 +312,8 @@ def _add_gap_validate(sub) -> None:
         description="Generate 'real' flights with one catalogued effect switched on at a random strength (plus tracking "
                     "noise), diagnose them with a model that lacks it, and print the confusion matrix; also the null "
                     "case (nothing withheld) and a foreign effect outside the catalogue (must be unexplained).")
-    p.add_argument("--cases", nargs="+", default=None, metavar="CASE", help="cases to run (default: all)")
+    p.add_argument("--cases", nargs="+", default=None, metavar="CASE",
+                   help="cases to run (default: every single case and the controls; 'pairs' stands for every pair)")
     p.add_argument("--trials", type=int, default=3, metavar="N", help="trials per case (default: %(default)s)")
     p.add_argument("--flights", type=int, default=2, metavar="K", help="flights per trial (default: %(default)s)")
     p.add_argument("--duration", type=float, default=60.0, metavar="S", help="seconds per flight (default: %(default)s)")
@@ -334,12 +335,10 @@ def _add_gap_validate(sub) -> None:
 def cmd_gap_validate(args) -> int:
     prog = args.prog
     from .atomic import write_atomic
-    from .gap.validate import CASES, all_pairs, confusion, get_case
+    from .gap.validate import CASES, confusion, expand_cases, get_case
     from .gap.validate_sweep import run_trials
 
-    cases = args.cases or list(CASES)
-    if args.pairs:
-        cases += [c for c in all_pairs() if c not in cases]
+    cases = expand_cases(args.cases, args.pairs)
     unknown = []
     for c in cases:
         try:

@@ -142,6 +142,11 @@ def _scene(seed, n=5):
     return cfg, arena, pos, yaw, theta
 
 
+def _sonar_buffers(K, N, S, G):
+    """Output arrays of rp.sonar_draws: dist, kind, cross-talk path, each (K, N, S, G)."""
+    return [np.empty((K, N, S, G)), np.empty((K, N, S, G), np.int8), np.empty((K, N, S, G))]
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 10**6))
 def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_reference(seed):
@@ -149,7 +154,7 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     sm = SonarModel.from_config(cfg)
     times = np.arange(pos.shape[0], dtype=np.int64)
     K, N, S = times.size, pos.shape[1], 4
-    dist, kind, xt = np.empty((K, N, S, 1)), np.empty((K, N, S, 1), np.int8), np.empty((K, N, S, 1))
+    dist, kind, xt = _sonar_buffers(K, N, S, 1)
     sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
     rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), wall_geometry(arena), sp, 1.0, times,
                    rp.PoseNoise(0.0, 0.0, 0, 0), 1, np.ones((K, N, S), bool), dist, kind, xt)
@@ -169,8 +174,7 @@ def test_sonar_draws_cast_only_the_needed_rays_and_those_exactly(seed):
     times = np.arange(pos.shape[0], dtype=np.int64)
     K, N, S, G = times.size, pos.shape[1], 4, 3
     poses, noise = rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), rp.PoseNoise(0.01, 0.02, seed, 1)
-    full = [np.empty((K, N, S, G)), np.empty((K, N, S, G), np.int8), np.empty((K, N, S, G))]
-    part = [np.empty_like(a) for a in full]
+    full, part = _sonar_buffers(K, N, S, G), _sonar_buffers(K, N, S, G)
     rp.sonar_draws(poses, wall_geometry(arena), sp, 1.0, times, noise, G, np.ones((K, N, S), bool), *full)
     need = np.random.default_rng(seed).random((K, N, S)) < 0.3
     rp.sonar_draws(poses, wall_geometry(arena), sp, 1.0, times, noise, G, need, *part)

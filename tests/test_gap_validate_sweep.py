@@ -48,6 +48,16 @@ def test_pairs_combine_two_effects_and_refuse_clashing_settings():
         get_case("nonsense+latency")
 
 
+def test_case_lists_expand_pairs_once_and_in_order():
+    from finkensim.gap.validate import expand_cases
+
+    pairs = all_pairs()
+    assert expand_cases(None) == list(CASES)
+    assert expand_cases(["pairs"]) == pairs
+    assert expand_cases(["null", pairs[3], "pairs"]) == ["null", pairs[3]] + [p for p in pairs if p != pairs[3]]
+    assert expand_cases(["null"], pairs=True) == ["null"] + pairs
+
+
 def test_conventions_axis_draws_every_convention_and_rejects_unknown_ones():
     rng = np.random.default_rng(0)
     draws = [draw_conventions(rng) for _ in range(300)]

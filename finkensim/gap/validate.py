@@ -328,6 +328,17 @@ def all_pairs() -> list[str]:
     return out
 
 
+def expand_cases(cases: list[str] | None, pairs: bool = False) -> list[str]:
+    """The case names to run: ``cases`` (default: every single case and control), with the name ``pairs`` standing
+    for every pair (:func:`all_pairs`), and every pair added when ``pairs`` is true; in order, each once."""
+    out = []
+    for c in list(cases or CASES) + (["pairs"] if pairs else []):
+        for name in (all_pairs() if c == "pairs" else [c]):
+            if name not in out:
+                out.append(name)
+    return out
+
+
 def get_case(name: str) -> Case:
     """A case by name: a key of :data:`CASES` or a pair ``a+b``."""
     if name in CASES:
