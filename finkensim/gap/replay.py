@@ -31,6 +31,7 @@ from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_ray, shifted_plates_env,
                                      sonar_hit, sonar_poses_env)
 from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
+from .bulge import bulge_displacement, first_order_lag  # noqa: F401  (first_order_lag: part of the replay's API)
 
 
 class GapInputError(ValueError):
@@ -116,44 +117,6 @@ def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
         for s in range(S):
             theta_out[k, s] = theta[s]
             dist_out[k, s] = dist[s]
-
-
-def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float, response: float = 0.0,
-                       t: np.ndarray | None = None, shape: float = 2.0) -> np.ndarray:
-    """Displacement (T, S_p) m of each plate, plate_distance (T, S_p) m from the nearest copter body: the target
-    ``amplitude · exp(−(d/reach)^shape)`` — the ``wall_bulge`` effect's form, set by what a log shows (how far
-    readings shorten, how close a copter must come, how sharply the bulge ends, how slowly the curtain follows),
-    not by hinge height or altitude. shape 2 is a Gaussian; a larger one a flat bulge that ends sharply near
-    reach (a hinged plate driven toward a near-constant angle within a threshold distance looks like that). With ``response`` τ > 0 s the plates follow the target as a first-order lag on the log's times
-    t (T,) s: x_k = x_{k−1} + (1 − exp(−Δt_k/τ))·(target_k − x_{k−1}), starting at rest on the first target (a
-    curtain keeps bending after the copter has passed, as the hinge does)."""
-    if amplitude == 0.0:
-        return np.zeros_like(plate_distance)
-    if not reach > 0:
-        raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
-    if not shape > 0:
-        raise ValueError(f"bulge shape = {shape!r}: expected > 0")
-    target = amplitude * np.exp(-(plate_distance / reach) ** shape)
-    if response == 0.0:
-        return target
-    if not response > 0 or t is None or t.shape[0] != target.shape[0]:
-        raise ValueError(f"bulge response = {response!r}: expected >= 0 s with the log's times (T,)")
-    alpha = -np.expm1(-np.diff(t) / response)
-    return first_order_lag(np.ascontiguousarray(target, dtype=np.float64), np.ascontiguousarray(alpha))
-
-
-@njit(cache=True)
-def first_order_lag(target, alpha):
-    """out (T, S): out[0] = target[0], out[k] = out[k−1] + alpha[k−1]·(target[k] − out[k−1]); alpha (T−1,)."""
-    T, S = target.shape
-    out = np.empty_like(target)
-    for s in range(S):
-        out[0, s] = target[0, s]
-    for k in range(1, T):
-        a = alpha[k - 1]
-        for s in range(S):
-            out[k, s] = out[k - 1, s] + a * (target[k, s] - out[k - 1, s])
-    return out
 
 
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:
