@@ -150,6 +150,17 @@ class Table:
     def n(self) -> int:
         return self.y.shape[0]
 
+    def needed(self, split: RowSplit, shape: tuple) -> np.ndarray:
+        """Bool mask ``shape`` = (len(split.u), N[, X]) of the (sample, copter[, channel]) cells that the split's
+        readings need (cached with the split): the replay computes only those."""
+        key = ("need",) + split.key
+        need = self.splits.get(key)
+        if need is None:
+            need = np.zeros(shape, dtype=bool)
+            need[(split.pos, split.copter, split.channel)[:len(shape)]] = True
+            self.splits.put(key, need)
+        return need
+
 class SonarTable(Table):
     """Ultrasonic readings; ideal draws depend on pose noise, wall gain, beam width and latency."""
 
@@ -212,11 +223,7 @@ class SonarTable(Table):
         u = split.u
         times = np.clip(fl.samples[u] - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
-        need = self.splits.get(("need",) + split.key)
-        if need is None:
-            need = np.zeros((K, N, S), dtype=bool)
-            need[split.pos, split.copter, split.channel] = True
-            self.splits.put(("need",) + split.key, need)
+        need = self.needed(split, (K, N, S))
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
@@ -436,11 +443,7 @@ class ImuTable(Table):
         hit = self.cache.get(key)
         if hit is None:
             times = np.clip(fl.samples[split.u] - lag_steps(p.latency_imu, fl.dt), h + b, fl.t.size - 1)
-            need = self.splits.get(("need",) + split.key)
-            if need is None:
-                need = np.zeros((times.size, fl.n_copters), dtype=bool)
-                need[split.pos, split.copter] = True
-                self.splits.put(("need",) + split.key, need)
+            need = self.needed(split, (times.size, fl.n_copters))
             out = np.empty((times.size, fl.n_copters, 3, G))
             rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, b, fl.noise(sx, sy, seed), G, need, out)
             hit = self.cache.put(key, (out,))

@@ -31,7 +31,7 @@ from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_ray, shifted_plates_env,
                                      sonar_hit, sonar_poses_env)
 from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
-from .bulge import bulge_displacement, first_order_lag  # noqa: F401  (first_order_lag: part of the replay's API)
+from .bulge import bulge_displacement
 
 
 class GapInputError(ValueError):
