@@ -87,3 +87,36 @@ def test_imports_follow_the_layers(path):
             continue
         if target in _LEVEL and target != here:
             assert _LEVEL[target] <= _LEVEL[here], f"{rel}:{node.lineno} imports {target} from a lower layer ({here})"
+
+
+def test_no_two_compilations_of_one_function_differ_in_options():
+    """numba's on-disk cache files its entries under the Python function (its file and line), not under the
+    compile options: two ``njit`` dispatchers of the same ``py_func`` with different code-changing options
+    (``parallel``, ``fastmath``, …) share one cache entry, and a warm cache then hands one the other's machine
+    code — a ``parallel=True`` kernel silently ran on one thread that way. Re-jitting with the same options (the
+    non-inlined twins of ``inline="always"`` kernels) is fine."""
+    import importlib
+    import pkgutil
+
+    from numba.core.registry import CPUDispatcher
+
+    import finkensim
+
+    code_options = ("parallel", "fastmath", "error_model", "boundscheck", "nogil", "looplift")
+    seen: dict[int, tuple[str, dict]] = {}
+    clashes = []
+    for mod in pkgutil.walk_packages(finkensim.__path__, "finkensim."):
+        try:
+            m = importlib.import_module(mod.name)
+        except ImportError:  # an optional extra that is not installed
+            continue
+        for name, obj in vars(m).items():
+            if not isinstance(obj, CPUDispatcher):
+                continue
+            opts = {k: obj.targetoptions.get(k) for k in code_options}
+            key = id(obj.py_func)
+            if key in seen and seen[key][1] != opts:
+                clashes.append(f"{mod.name}.{name} {opts} vs {seen[key][0]} {seen[key][1]}")
+            seen.setdefault(key, (f"{mod.name}.{name}", opts))
+    assert seen, "no numba dispatchers found"
+    assert not clashes, f"one function compiled with different options (they share a cache entry): {clashes}"

@@ -93,8 +93,17 @@ def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
         _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
 
 
-#: the same kernel without threads: a parallel launch costs far more than a small batch's work
-control_step_serial = njit(cache=True)(control_step.py_func)
+@njit(cache=True)
+def control_step_serial(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+    """:func:`control_step` without threads: a parallel launch costs far more than a small batch's work.
+
+    Its own function on purpose, not ``njit(control_step.py_func)``: numba's on-disk cache files entries under
+    the Python function, so a serial compilation of the same function shares the parallel one's cache entry and
+    whichever compiled first was loaded for both — the vector env then ran on one thread from a warm cache."""
+    for b in range(w.pos.shape[0]):
+        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
+
+
 #: batches with fewer copters in total than this run :data:`control_step_serial`
 PARALLEL_MIN_COPTERS = 512
 
