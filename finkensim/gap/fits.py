@@ -110,8 +110,10 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
 
 def _fit_latency(diag: "Diagnosis", effect, current, vals):
     """Per sensor, a search over whole log samples between the bounds (s): every ``stride``-th lag first
-    (about 16 candidates), then each lag within ``stride`` of the best. The CRPS uses common random numbers, so
-    it is a deterministic function of the lag; the refinement catches a minimum between coarse points."""
+    (about 16 candidates), then a pattern search from the best with steps stride/2, stride/4, … and finally 1
+    until no neighbour improves (the exhaustive ±stride scan it replaced cost 2·stride − 1 evaluations per
+    sensor; this takes about 2·log₂ stride + 2). The CRPS uses common random numbers, so it is a deterministic
+    function of the lag; the refinement catches a minimum between coarse points."""
     dt = min(f.dt for f in diag.flights)
     out = dict(vals)
     for prm in effect.params:
@@ -123,11 +125,20 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
         start = int(round(out[prm.name] / dt))
         scores = {k: f(k) for k in sorted(set(range(0, hi + 1, stride)) | set(range(0, lo - 1, -stride)) | {start})
                   if lo <= k <= hi}
-        best = min(scores, key=scores.get)
-        for k in range(max(lo, best - stride + 1), min(hi, best + stride - 1) + 1):
-            if k not in scores:
-                scores[k] = f(k)
-        best = min(scores, key=lambda k: (scores[k], abs(k)))
+        rank = lambda k: (scores[k], abs(k))  # noqa: E731  (ties go to the smaller lag)
+        best = min(scores, key=rank)
+        step = max(1, stride // 2)
+        while True:
+            for k in (best - step, best + step):
+                if lo <= k <= hi and k not in scores:
+                    scores[k] = f(k)
+            moved = min((k for k in (best - step, best, best + step) if k in scores), key=rank)
+            if moved == best and step == 1:
+                break
+            if step > 1:  # halve; at step 1 keep climbing while a neighbour improves
+                step //= 2
+            best = moved
+        best = min(scores, key=rank)
         out[prm.name] = best * dt
     return out
 
