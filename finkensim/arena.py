@@ -204,7 +204,6 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
     else:
         lim = 0.0
     # the moving plates' state gathered into contiguous arrays: the substep loops then run without indirection
-    # and branch-free (selects), which lets the compiler keep several plates in one vector register
     n_mov = n_on + n_off
     th_a = np.empty(n_mov)
     om_a = np.empty(n_mov)
@@ -243,14 +242,12 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
             # viscous friction integrated implicitly: stable for any friction / inertia ratio
             om = (om_a[q] - g_t * sin_half_pi(th) / inertia * h) / fric
             th_a[q], om_a[q] = _advance_stopped(th, om, h, half_pi)
-    for q in range(n_mov):
+    for q in range(n_mov):  # scatter back, then the contact cap
         s = order[q]
         theta[s] = th_a[q]
         omega[s] = om_a[q]
         if q < n_on:
             integ[s] = ig_a[q]
-    for q in range(n_on + n_off):
-        s = order[q]
         cap = contact_angle(dist[s], lever)
         if theta[s] > cap:
             theta[s] = cap
