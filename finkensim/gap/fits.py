@@ -1,4 +1,5 @@
-"""Parameter searches of the diagnosis: a bounded Nelder–Mead, and the effects' own fits.
+"""Parameter searches of the diagnosis: a bounded Nelder–Mead, a joint fit of several effects, and the effects'
+own fits.
 
 Each custom fit ``fit(diag, effect, current, vals) -> vals`` takes a :class:`~finkensim.gap.diagnose.Diagnosis`
 (its ``_objective``, ``_fit_group``, tables and training rows), the effect, the model it is fitted on top of and
@@ -6,6 +7,7 @@ the starting values, and returns the fitted values by parameter name.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING
 
@@ -26,6 +28,34 @@ def nelder_mead(f, vals, group, x0, f0, maxfev=40):
                                    "initial_simplex": _simplex(np.asarray(x0, float), (hi - lo) / 8, lo, hi)})
     x = np.clip(r.x, lo, hi) if r.fun < f0 else np.asarray(x0, float)
     return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
+
+
+class _Chain:
+    """Several effects applied in order as one, their parameters named ``effect.param``."""
+
+    def __init__(self, effects):
+        self.effects = list(effects)
+
+    def apply(self, p, values: dict):
+        for e in self.effects:
+            p = e.apply(p, {q.name: values[f"{e.name}.{q.name}"] for q in e.params})
+        return p
+
+
+def joint_fit(diag: "Diagnosis", effects, values, maxfev: int = 40):
+    """Fit the continuous parameters of ``effects`` together (integer ones stay as given): a Nelder–Mead from
+    ``values`` (one dict per effect) on the training rows of their sensors, the effects applied in order on the
+    configured model. Returns one dict of values per effect.
+
+    Two effects on one sensor can trade off (a range scale and a bias both shift readings at the distances flown):
+    fitted one on top of the other, each stops partway along that valley; fitted together they reach its floor."""
+    chain = _Chain(effects)
+    flat = {f"{e.name}.{k}": v for e, vals in zip(effects, values) for k, v in vals.items()}
+    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.params if not q.integer]
+    sensors = sorted({s for e in effects for s in e.sensors if s in diag.tables})
+    f = lambda v: diag._objective(chain, diag.base, sensors, v)  # noqa: E731
+    out = nelder_mead(f, flat, group, [flat[q.name] for q in group], f(flat), maxfev=maxfev) if group else flat
+    return [{q.name: out[f"{e.name}.{q.name}"] for q in e.params} for e in effects]
 
 
 def _simplex(x0, step, lo, hi):
