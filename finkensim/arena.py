@@ -180,13 +180,14 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
     fric = 1.0 + hp.friction / hp.inertia * h
     rest_ok = (np.isfinite(hp.gravity_torque) and hp.gravity_torque >= 0.0 and np.isfinite(hp.inertia)
                and hp.inertia > 0.0 and np.isfinite(h) and h > 0.0 and np.isfinite(fric) and fric > 0.0)
-    # order[:n_on] motor-on plates, order[n_on:n_on + n_off] motor-off plates that move; target per plate
+    # order[:n_on] motor-on plates, order[n_on:n_on + n_off] motor-off plates that move; tg_a[q] the target of
+    # motor-on plate order[q]
     order = np.empty(S, dtype=np.int64)
-    target = np.empty(S)
+    tg_a = np.empty(S)
     n_on = 0
     for s in range(S):
         if dist[s] < hp.threshold:
-            target[s] = target_angle(dist[s], hp.threshold, hp.max_amplitude)
+            tg_a[n_on] = target_angle(dist[s], hp.threshold, hp.max_amplitude)
             order[n_on] = s
             n_on += 1
     n_off = 0
@@ -208,14 +209,12 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
     th_a = np.empty(n_mov)
     om_a = np.empty(n_mov)
     ig_a = np.empty(n_on)
-    tg_a = np.empty(n_on)
     for q in range(n_mov):
         s = order[q]
         th_a[q] = theta[s]
         om_a[q] = omega[s]
         if q < n_on:
             ig_a[q] = integ[s]
-            tg_a[q] = target[s]
     use_i = hp.i > 0.0
     p_gain = hp.p
     i_gain = hp.i

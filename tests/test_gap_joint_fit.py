@@ -2,8 +2,6 @@
 one on top of the other stops partway along (the sonar_bias + sound_speed pair of the gap validation)."""
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import pytest
 
 from finkensim.gap.effects import Effect, Param

@@ -7,7 +7,8 @@ libm's ≤ 1 ulp, at a fifth of the cost: no range reduction, one chain of 8 mul
 can interleave across loop iterations. Outside |x| ≤ π/2 it is not the sine (error 4·10⁻¹⁵ at 1.6, 10⁻¹¹ at 2, 2·10⁻⁹ at 2.5).
 
 Used where a hot loop calls the sine of an angle that is bounded by construction: the curtain hinges'
-gravity torque (θ is stopped at ±π/2), 10 substeps × S plates per world step.
+gravity torque (θ is stopped at ±π/2), 10 substeps × S plates per world step, and the cosine of every
+Box–Muller normal (:func:`finkensim.kernels.rng.normal`, as sin(2π|u − ½| − π/2)).
 """
 from __future__ import annotations
 
