@@ -162,6 +162,26 @@ def test_shrink_never_exceeds_one(seed, scale, shift):
     assert meter.gap_after(*other) >= -1e-12 or meter.c0 <= 0
 
 
+def test_a_model_worse_than_the_configured_one_is_charged_its_score_penalty_in_gap_units():
+    """The null case that once reported a shrink of −1.8e5: the best known predictive scores within 1e-7 of the
+    configured one and a correction fitted to noise scores worse by 0.05. Its score term is −0.05 / c0 (the
+    penalty as gap added), not −0.05 / 1e-7; the branches meet at 0 for a model that scores like F₀, and an
+    improvement still counts as a share of the best improvement."""
+    n = 1000
+    c0 = 0.1
+    base_score, base_gap = {"s": np.full(n, 1.0)}, {"s": np.full(n, c0)}
+    near = {"s": np.full(n, 1.0 - 1e-7)}
+    worse = ({"s": np.full(n, 1.05)}, {"s": np.full(n, 0.0)})  # calibrated, yet worse in score
+    meter = ShrinkMeter(base_score, base_gap, ["s"], [near, worse[0]])
+    assert meter.shrink(*worse) == pytest.approx(-0.05 / c0)
+    assert meter.gap_after(*worse) == pytest.approx(c0 + 0.05)
+    same = ({"s": np.full(n, 1.0)}, {"s": np.full(n, 0.0)})
+    assert meter.shrink(*same) == 0.0
+    half = ({"s": np.full(n, 0.75)}, {"s": np.full(n, 0.0)})
+    best = {"s": np.full(n, 0.5)}
+    assert ShrinkMeter(base_score, base_gap, ["s"], [best, half[0]]).shrink(*half) == pytest.approx(0.5)
+
+
 # ------------------------------------------------------------------------- against scoringrules (independent)
 
 @pytest.mark.parametrize("seed", range(5))

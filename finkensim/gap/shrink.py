@@ -10,11 +10,16 @@ mean over those sensors of the per-reading mean, normalised as in :mod:`.diagnos
 A model that only widens its predictive distribution can bring c(F) to zero (or below) without being
 right; it cannot lower S(F) below that of a predictive closer to reality (propriety). So
 
-    shrink(F) = min( 1 − |c(F)| / c(F₀),  (S(F₀) − S(F)) / (S(F₀) − S_min) )
+    shrink(F) = min( 1 − |c(F)| / c(F₀),  (S(F₀) − S(F)) / (S(F₀) − S_min) )     if S(F) ≤ S(F₀)
+    shrink(F) = min( 1 − |c(F)| / c(F₀),  −(S(F) − S(F₀)) / c(F₀) )             if S(F) > S(F₀)
 
 where F₀ is the configured model and S_min the best score of every predictive the diagnosis built from
 the catalogue (each effect, refit and combination; for the data-driven correction of :mod:`.correction`,
-also the correction itself). Both terms are
+also the correction itself). The score term of a model that scores *worse* than F₀ is its score penalty in
+units of the gap (a predictive that moves by δ scores worse by about as much as its gap grows, so the penalty
+reads as gap added): a ratio to S(F₀) − S_min would divide by ≈ 0 whenever nothing beats the configured model
+(a correction fitted to noise once reported a shrink of −1.8·10⁵ that way). The two branches meet at 0 when
+S(F) = S(F₀). Both terms are
 at most 1, so the shrink cannot exceed 1; an over-dispersed fit loses on the first term (|c| grows as c
 turns negative) and, whenever anything describes the data better, on the second. The reported
 ``gap_after`` = c(F₀) · (1 − shrink(F)), so that ``shrink = 1 − gap_after / gap_before`` as the spec says.
@@ -53,7 +58,10 @@ class ShrinkMeter:
         c = sensor_mean({**self.base_gap, **rows_gap}, self.sensors)
         s = sensor_mean({**self.base_score, **rows_score}, self.sensors)
         calibration = 1.0 - abs(c) / self.c0
-        score = (self.s0 - s) / (self.s0 - self.s_min) if self.s0 > self.s_min else 0.0
+        if s > self.s0:
+            score = -(s - self.s0) / self.c0
+        else:
+            score = (self.s0 - s) / (self.s0 - self.s_min) if self.s0 > self.s_min else 0.0
         return float(min(calibration, score))
 
     def gap_after(self, rows_score: dict, rows_gap: dict) -> float:
