@@ -117,6 +117,17 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             evaluated.append(cur_scores)
             steps.append(("joint refit", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in added}))
 
+    if len(added) == 2:
+        swap = _swap_second(diag, added, first, evaluated)
+        if swap is not None and swap[-1].score_heldout < cur_score:
+            imp, _, imp_p = improvement(cur_scores, swap[-1].rows_score)
+            if np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0:
+                added = swap
+                current, cur_scores, cur_gaps = swap[-1].params, swap[-1].rows_score, swap[-1].rows_gap
+                cur_score = swap[-1].score_heldout
+                steps.append(("joint swap", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in swap}))
+                diag.say(f"  joint fit of {swap[0].name} and {swap[1].name}: held-out score {cur_score:.4f}")
+
     shrink_sensors = gap_sensors or list(base_scores)
     if (significant and added and ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated).shrink(
             cur_scores, cur_gaps) < cfg.unexplained_shrink):
@@ -276,6 +287,32 @@ def _pair_second_chance(diag, first_added, first, evaluated):
     if not others:
         return None
     diag.say(f"  unexplained so far: fitting {a.name} jointly with {', '.join(r.name for r in others)}")
+    return _best_joint_pair(diag, first_added, others, evaluated)
+
+
+def _swap_second(diag, added, first, evaluated, top: int = 2):
+    """When two effects on a shared sensor were selected: the first fitted jointly with each of the ``top``
+    leading first-round candidates that share a sensor with the second (other than the two), the alternatives to
+    the second. Returns the best such pair's chain of FitResults (held-out scored; rows appended to
+    ``evaluated``), or None.
+
+    Why: effects on one sensor trade off (a constant bias and a range scale both shift readings at the distances
+    flown); fitted on top of a first effect that has already absorbed part of one, the greedy step can pick the
+    other, and the final refit of that pair still explains the gap well."""
+    second = fx.REGISTRY[added[1].name]
+    if not set(second.sensors) & set(fx.REGISTRY[added[0].name].sensors):
+        return None  # fitted on top of an effect on other sensors, the second step had nothing to trade off with
+    names = {r.name for r in added}
+    others = [r for r in first if r.name not in names and set(fx.REGISTRY[r.name].sensors) & set(second.sensors)][:top]
+    if not others:
+        return None
+    diag.say(f"  alternatives to {second.name}: fitting {added[0].name} jointly with {', '.join(r.name for r in others)}")
+    return _best_joint_pair(diag, added[0], others, evaluated)
+
+
+def _best_joint_pair(diag, first_added, others, evaluated):
+    """``first_added`` fitted jointly with each FitResult of ``others``: the best pair by held-out score."""
+    a = fx.REGISTRY[first_added.name]
     best = None
     for r in others:
         b = fx.REGISTRY[r.name]
