@@ -19,11 +19,12 @@ from finkensim.kernels.geometry import nearest_body_distance_within_env
 from finkensim.sensors.imu import imu_env
 from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
 from finkensim.swarm import ranging_env
+from finkensim.kernels.cellgrid import engine_grid, env_grid
 from finkensim.world import step_env
 
 
 @njit(cache=True)
-def t_world(w, cp, hp, geo, dt, reps):
+def t_world(w, cp, hp, geo, dt, grid, reps):
     B, N, _ = w.pos.shape
     dist_buf = np.empty(geo.seg_a.shape[0])
     gap = np.empty(N)
@@ -34,7 +35,7 @@ def t_world(w, cp, hp, geo, dt, reps):
             for n in range(N):
                 cmd_v[n, 0] = 0.2 * np.cos(w.yaw[b, n])
                 cmd_v[n, 1] = 0.2 * np.sin(w.yaw[b, n])
-            step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap)
+            step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap, grid, env_grid(grid, b))
 
 
 @njit(cache=True)
@@ -139,7 +140,8 @@ def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dic
     geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp, 1)
     rows = {
         "world step (move, contacts, plate distances, hinges)": _best(
-            t_world, (s.arrays(), world.copter_params, world.hinge_params, world.geometry, world.dt), reps, b),
+            t_world, (s.arrays(), world.copter_params, world.hinge_params, world.geometry, world.dt,
+                      engine_grid(world.grid, b, n)), reps, b),
         "  of which plate distances (segments near each copter)": _best(
             t_nearest, (ws.pos, a.seg_a, a.seg_b, world.copter_params.radius, cutoff), reps, b),
         "  of which hinge dynamics (S plates × substeps)": _best(

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from benchmarks.cellgrid import build_env, grid_spec, neighbour_counts, query_env, raycast_fan_env
+from finkensim.kernels.cellgrid import build_env, grid_spec, query_env, raycast_fan_env
+from finkensim.kernels.cellgrid_batch import neighbour_counts
 from finkensim.kernels.geometry import ray_circle
 from finkensim.kernels.raycast import box_exit
 

@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from .config import ArenaConfig, CopterConfig
+from .kernels.cellgrid import any_within_env, build_env
 
 
 class CopterParams(NamedTuple):
@@ -125,24 +126,35 @@ WALL_RELEASE_GAP = 0.02  # m
 
 
 @njit(cache=True, inline="always")
-def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collision, collisions):
+def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collision, collisions, gp, grid):
     """Count contact onsets for one environment (N copters) in place.
 
     wall_gap (N,) m: body-to-wall distance this step (0 = touching). A wall contact begins at
     gap 0 and ends when the gap exceeds :data:`WALL_RELEASE_GAP`. Updates in_wall/in_collision
-    flags and increments wall_contacts/collisions (N,) where a contact begins.
+    flags and increments wall_contacts/collisions (N,) where a contact begins. Two copters touch when their
+    centres are closer than 2·radius. gp: a :class:`~finkensim.kernels.cellgrid.GridParams` (or a record with
+    its fields, such as :class:`~finkensim.kernels.cellgrid.EngineGrid`); when on, the
+    overlaps are found with the cell grid in ``grid`` = (cell_start, order, spos, cell_of) of this environment
+    (rebuilt here), else by the brute force — the same test either way.
     """
     N = pos.shape[0]
     lim2 = (2.0 * radius) ** 2
+    if gp.on:
+        cell_start, order, spos, cell_of = grid
+        build_env(pos, gp.x0, gp.y0, gp.inv_cell, gp.nx, gp.ny, cell_start, order, spos, cell_of)
     for i in range(N):
         overlap = False
-        for j in range(N):
-            if j != i:
-                dx = pos[i, 0] - pos[j, 0]
-                dy = pos[i, 1] - pos[j, 1]
-                if dx * dx + dy * dy < lim2:
-                    overlap = True
-                    break
+        if gp.on:
+            overlap = any_within_env(pos[i, 0], pos[i, 1], 2.0 * radius, i, gp.x0, gp.y0, gp.inv_cell, gp.nx,
+                                     gp.ny, cell_start, order, spos)
+        else:
+            for j in range(N):
+                if j != i:
+                    dx = pos[i, 0] - pos[j, 0]
+                    dy = pos[i, 1] - pos[j, 1]
+                    if dx * dx + dy * dy < lim2:
+                        overlap = True
+                        break
         if overlap and not in_collision[i]:
             collisions[i] += 1
         in_collision[i] = overlap

@@ -32,6 +32,7 @@ from numba import njit, prange
 from .arena import Arena, HingeParams, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
+from .kernels.cellgrid import engine_grid, env_grid, grid_params
 from .kernels.geometry import nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
 
@@ -135,13 +136,15 @@ class Trajectory:
 
 
 @njit(cache=True, inline="always")
-def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf):
+def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
     """Advance environment b of the :class:`WorldArrays` ``w`` by dt s in place: copters move, contacts
     are counted, plates respond.
 
     cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; cp
     :class:`~finkensim.copters.CopterParams`, hp :class:`~finkensim.arena.HingeParams`, geo
-    :class:`~finkensim.arena.WallGeometry`; dist_buf (S,) and gap_buf (N,) are work buffers. The plates need the
+    :class:`~finkensim.arena.WallGeometry`; dist_buf (S,) and gap_buf (N,) are work buffers; g (an
+    :class:`~finkensim.kernels.cellgrid.EngineGrid`) and grid (this environment's buffers of it,
+    :func:`~finkensim.kernels.cellgrid.env_grid`) serve the copter contacts. The plates need the
     nearest-body distance only below max(threshold, lever): farther, a plate is inactive and its
     contact cap is 90° whatever the distance, so dist_buf holds the exact distances below that and inf
     above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
@@ -155,18 +158,19 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf):
         yaw[n], yaw_rate[n], gap_buf[n] = move_copter(
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
     update_contacts_env(pos, cp.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
-                        w.collisions[b])
+                        w.collisions[b], g, grid)
     nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, max(hp.threshold, geo.lever), dist_buf)
     walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hp, geo.lever, dt)
 
 
 @njit(cache=True, parallel=True)
-def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt):
-    """One step of every environment of ``w`` (:class:`WorldArrays`) in place; cmd_v (B, N, 2), cmd_w (B, N)."""
+def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt, g):
+    """One step of every environment of ``w`` (:class:`WorldArrays`) in place; cmd_v (B, N, 2), cmd_w (B, N);
+    g: the :class:`~finkensim.kernels.cellgrid.EngineGrid` of the batch."""
     for b in prange(w.pos.shape[0]):
         dist_buf = np.empty(geo.seg_a.shape[0])
         gap_buf = np.empty(w.pos.shape[1])
-        step_env(w, b, cmd_v[b], cmd_w[b], cp, hp, geo, dt, dist_buf, gap_buf)
+        step_env(w, b, cmd_v[b], cmd_w[b], cp, hp, geo, dt, dist_buf, gap_buf, g, env_grid(g, b))
 
 
 @njit(cache=True, parallel=True)
@@ -217,6 +221,9 @@ class World:
         self.hinge_params: HingeParams = self.arena.hinge
         self.geometry = wall_geometry(self.arena)
         self.dt = c.simulation.dt
+        #: the copter-copter cell grid (on from ``simulation.grid_min_copters`` copters per environment)
+        self.grid = grid_params(c.copters.n, c.arena.width, c.arena.length, 2.0 * c.copters.radius,
+                                c.simulation.grid_min_copters)
 
     @property
     def n_copters(self) -> int:
@@ -317,7 +324,7 @@ class World:
         """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced)."""
         cmd_vel, cmd_yaw_rate = self.check_commands(state, cmd_vel, cmd_yaw_rate)
         _step_batch(state.arrays(), cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params, self.geometry,
-                    self.dt)
+                    self.dt, engine_grid(self.grid, state.n_envs, state.n_copters))
 
     def rollout(self, state: WorldState, n_steps: int, controller: Callable,
                 record: bool = True) -> tuple[WorldState, Trajectory | None]:

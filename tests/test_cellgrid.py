@@ -1,4 +1,4 @@
-"""Cell grid (benchmarks/cellgrid.py): neighbour queries and raycasts == brute force.
+"""Cell grid (finkensim/kernels/cellgrid.py): neighbour queries and raycasts == brute force.
 
 The brute-force references are plain NumPy written from the definitions: a copter j is a neighbour
 of i when (x_j − x_i)² + (y_j − y_i)² ≤ r² (the same formula and operand order as the kernel, so
@@ -14,7 +14,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from benchmarks import cellgrid as cg
+from finkensim.kernels import cellgrid as cg
+from finkensim.kernels import cellgrid_batch as cgb
 from tests.naive import geometry as naive
 
 
@@ -47,9 +48,9 @@ def brute_raycast(pos_b, yaw_b, ray_yaw, max_range, radius):
 
 
 def check_neighbours(pos, r, spec, exclude_self=True):
-    counts, idx, d2 = cg.neighbours_within(pos, r, spec, exclude_self=exclude_self)
+    counts, idx, d2 = cgb.neighbours_within(pos, r, spec, exclude_self=exclude_self)
     assert counts.max(initial=0) <= idx.shape[2]
-    n_counts = cg.neighbour_counts(pos, r, spec, exclude_self=exclude_self)
+    n_counts = cgb.neighbour_counts(pos, r, spec, exclude_self=exclude_self)
     np.testing.assert_array_equal(counts, n_counts)
     for b in range(pos.shape[0]):
         ref, ref_d2 = brute_neighbours(pos[b], r, exclude_self)
@@ -113,9 +114,9 @@ def test_copters_on_cell_borders_and_corners(nx, ny, cell, r_cells):
 def test_one_copter_has_no_neighbours():
     pos = np.array([[[1.0, 1.0]]])
     spec = cg.grid_spec(3.0, 4.0, 2.5)
-    counts, idx, _ = cg.neighbours_within(pos, 2.5, spec)
+    counts, idx, _ = cgb.neighbours_within(pos, 2.5, spec)
     assert counts.tolist() == [[0]] and idx.shape == (1, 1, 0)
-    counts, idx, d2 = cg.neighbours_within(pos, 2.5, spec, exclude_self=False)
+    counts, idx, d2 = cgb.neighbours_within(pos, 2.5, spec, exclude_self=False)
     assert counts.tolist() == [[1]] and idx[0, 0, 0] == 0 and d2[0, 0, 0] == 0.0
 
 
@@ -126,7 +127,7 @@ def test_empty_cells_and_all_in_one_cell():
     spec = cg.grid_spec(10.0, 10.0, 1.0)
     check_neighbours(pos, 0.2, spec)
     check_neighbours(pos, 5.0, spec)
-    cell_start, order, spos = cg.build_grid(pos, spec)
+    cell_start, order, spos = cgb.build_grid(pos, spec)
     assert cell_start[:, 1].tolist() == [25, 25] and np.all(cell_start[:, -1] == 25)
     np.testing.assert_array_equal(order, np.tile(np.arange(25), (2, 1)))  # stable sort
 
@@ -135,7 +136,7 @@ def test_build_is_a_stable_counting_sort():
     rng = np.random.default_rng(1)
     pos = rng.uniform(-0.5, 5.5, size=(3, 200, 2))  # some outside the grid: clamped to edge cells
     spec = cg.grid_spec(5.0, 5.0, 0.7)
-    cell_start, order, spos = cg.build_grid(pos, spec)
+    cell_start, order, spos = cgb.build_grid(pos, spec)
     cx = np.clip(np.floor((pos[..., 0] - spec.x0) / spec.cell), 0, spec.nx - 1).astype(int)
     cy = np.clip(np.floor((pos[..., 1] - spec.y0) / spec.cell), 0, spec.ny - 1).astype(int)
     cell = cy * spec.nx + cx
@@ -148,7 +149,7 @@ def test_build_is_a_stable_counting_sort():
 
 def test_truncated_lists_report_true_counts():
     pos = np.zeros((1, 5, 2))
-    counts, idx, _ = cg.neighbours_within(pos, 1.0, cg.grid_spec(2.0, 2.0, 1.0), max_neighbours=2)
+    counts, idx, _ = cgb.neighbours_within(pos, 1.0, cg.grid_spec(2.0, 2.0, 1.0), max_neighbours=2)
     assert counts.tolist() == [[4] * 5] and idx.shape == (1, 5, 2) and np.all(idx >= 0)
 
 
@@ -160,7 +161,7 @@ def test_grid_spec_validation_and_cap():
     spec = cg.grid_spec(1000.0, 1000.0, 0.001, max_cells=10_000)
     assert spec.n_cells <= 10_000 and spec.nx * spec.cell >= 1000.0
     with pytest.raises(ValueError, match="finite"):
-        cg.neighbours_within(np.array([[[np.nan, 0.0]]]), 1.0, spec)
+        cgb.neighbours_within(np.array([[[np.nan, 0.0]]]), 1.0, spec)
 
 
 # --------------------------------------------------------------------------- raycasts
@@ -173,7 +174,7 @@ def test_raycast_fan_matches_brute_force(scene, radius, max_range, n_rays, yaw0)
     ray_yaw = yaw0 + np.arange(n_rays) * (2 * np.pi / n_rays)
     yaw = np.linspace(-3.0, 3.0, B * N).reshape(B, N)
     spec = cg.grid_spec(width, length, cell)
-    t, j = cg.raycast_fan(pos, yaw, ray_yaw, max_range, radius, spec)
+    t, j = cgb.raycast_fan(pos, yaw, ray_yaw, max_range, radius, spec)
     for b in range(B):
         ref = brute_raycast(pos[b], yaw[b], ray_yaw, max_range, radius)
         np.testing.assert_allclose(t[b], ref, rtol=1e-12, atol=1e-12)
@@ -191,7 +192,7 @@ def test_raycast_analytic():
     # copter 0 at the origin looking along +x; copter 1 at 2 m, copter 2 at 5 m (beyond 3 m range)
     pos = np.array([[[0.5, 0.5], [2.5, 0.5], [5.5, 0.5]]])
     spec = cg.grid_spec(6.0, 1.0, 1.0)
-    t, j = cg.raycast_fan(pos, np.zeros((1, 3)), [0.0, np.pi / 2, np.pi], 3.0, 0.15, spec)
+    t, j = cgb.raycast_fan(pos, np.zeros((1, 3)), [0.0, np.pi / 2, np.pi], 3.0, 0.15, spec)
     assert t[0, 0, 0] == pytest.approx(1.85) and j[0, 0, 0] == 1
     assert np.isinf(t[0, 0, 1]) and j[0, 0, 1] == -1
     assert np.isinf(t[0, 0, 2])
@@ -225,7 +226,7 @@ def test_per_environment_kernels_compose_in_a_compiled_loop():
     pos = rng.uniform(0, 10, size=(4, 60, 2))
     spec = cg.grid_spec(10.0, 10.0, 2.5)
     got = loop(pos, 2.5, spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny)
-    np.testing.assert_array_equal(got, cg.neighbour_counts(pos, 2.5, spec))
+    np.testing.assert_array_equal(got, cgb.neighbour_counts(pos, 2.5, spec))
     for t in range(4):
         ref, _ = brute_neighbours(pos[t], 2.5)
         assert got[t].tolist() == [len(x) for x in ref]

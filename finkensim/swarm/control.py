@@ -26,6 +26,7 @@ from ..behaviours.attraction import body_to_world_env
 from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, ultrasonic_env
+from ..kernels.cellgrid import engine_grid, env_grid
 from ..world import step_env
 from .state import RunSpec, SwarmState
 
@@ -69,7 +70,7 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
 
 
 @njit(cache=True)
-def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """Environment b of :func:`control_step` (work buffers allocated here, outside the ``prange`` body)."""
     N = w.pos.shape[1]
     S = geo.plate_a.shape[0]
@@ -78,30 +79,31 @@ def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, i
     if run.n_steps == 1:
         cmd_v = np.empty((N, 2))
         _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
-        _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N))
+        _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N), grid,
+                 env_grid(grid, b))
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
                geo, sp, rp, beacons, ip, bufs)
 
 
 @njit(cache=True, parallel=True)
-def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """For every environment b (``prange``): if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the
     headings into the world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate
     commands; then sense at step ``run.step0 + run.n_steps`` into ``obs`` (a :class:`ControlReadings`).
     ``w`` (WorldArrays) and ``bias`` (B, N, 3) change in place."""
     for b in prange(w.pos.shape[0]):
-        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
+        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
 
 
 @njit(cache=True)
-def control_step_serial(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip):
+def control_step_serial(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """:func:`control_step` without threads: a parallel launch costs far more than a small batch's work.
 
     Its own function on purpose, not ``njit(control_step.py_func)``: numba's on-disk cache files entries under
     the Python function, so a serial compilation of the same function shares the parallel one's cache entry and
     whichever compiled first was loaded for both — the vector env then ran on one thread from a warm cache."""
     for b in range(w.pos.shape[0]):
-        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip)
+        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
 
 
 #: batches with fewer copters in total than this run :data:`control_step_serial`
@@ -118,6 +120,13 @@ class Controlled:
     def __init__(self, sim):
         self.sim = sim
         self.n_ranging = sim.n_copters + sim.beacons.shape[0]
+        self._grid = (0, None)
+
+    def _grid_buffers(self, B: int, N: int):
+        """The grid buffers of B environments, allocated once per batch size."""
+        if self._grid[0] != B:
+            self._grid = (B, engine_grid(self.sim.world.grid, B, N))
+        return self._grid[1]
 
     def _run(self, state: SwarmState, cmd_body, n_steps: int) -> ControlReadings:
         sim = self.sim
@@ -133,7 +142,7 @@ class Controlled:
         w = sim.world
         kernel = control_step if B * N >= PARALLEL_MIN_COPTERS else control_step_serial
         kernel(ws.arrays(), state.imu_bias, run, cmd, obs, w.copter_params, w.hinge_params, w.geometry,
-                     sim.sonar, sim.ranging.params, sim.beacons, sim.imu)
+                     sim.sonar, sim.ranging.params, sim.beacons, sim.imu, self._grid_buffers(B, N))
         return obs
 
     def sense(self, state: SwarmState) -> ControlReadings:

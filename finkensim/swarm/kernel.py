@@ -27,6 +27,7 @@ from ..behaviours.wall_check import dead_reckon_env, wall_check_env
 from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
+from ..kernels.cellgrid import env_grid
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
@@ -112,11 +113,12 @@ def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g
 
 
 @njit(cache=True)
-def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp):
+def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
     """``run.n_steps`` steps of the closed loop for environment b, in place (the body of
     :func:`swarm_rollout`'s ``prange`` loop). Each step k: 1. sense (sonars on the plates displaced by
     their current angles, down sonar, ranging, IMU + dead reckoning), 2. behave (wall check, then the
-    built-in controller ``run.kind``), 3. :func:`~finkensim.world.step_env`. beacons (M, 2) m."""
+    built-in controller ``run.kind``), 3. :func:`~finkensim.world.step_env`. beacons (M, 2) m; grid: the
+    copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`)."""
     N = w.pos.shape[1]
     S = geo.plate_a.shape[0]
     R = N + beacons.shape[0]
@@ -144,6 +146,7 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp)
     cmd_w = np.zeros(N)
     dist_buf = np.empty(geo.seg_a.shape[0])
     gap_buf = np.empty(N)
+    grid_b = env_grid(grid, b)
     for t in range(run.n_steps):
         k = run.step0 + t
         _record_state(t, b, w, rec)
@@ -170,14 +173,14 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp)
             _random_walk_fn(pos, seed, env, k, rw, cmd_v, cmd_w)
         _record_step(t, b, rec, son, dist, hit_kind, mem.wall[b], down, rng, imu_a, imu_g, cmd_v, cmd_w)
         # 3. step
-        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf)
+        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
 
 
 @njit(cache=True, parallel=True)
-def swarm_rollout(w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp):
+def swarm_rollout(w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
     """``run.n_steps`` steps of the closed loop for the B environments of ``w``/``mem``, in place:
     ``prange`` over B, the T loop inside (:func:`swarm_env`). ``rec`` arrays are filled when their
     leading dimension is n_steps (else 0)."""
     for b in prange(w.pos.shape[0]):
         # np.int64: the prange index is typed uint64 in one numba pass and int64 in another (two compilations)
-        swarm_env(np.int64(b), w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp)
+        swarm_env(np.int64(b), w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid)

@@ -16,6 +16,7 @@ from ..sensors.imu import ImuModel, imu_step
 from ..sensors.ranging import RangingModel, ranging_readings
 from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic_readings
 from ..world import World
+from ..kernels.cellgrid import engine_grid
 from .kernel import swarm_rollout
 from .state import KIND_ATTRACTION, KIND_CODES, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SENSOR_OF, \
     Recording, RunSpec, SensorReadings, SwarmRecord, SwarmState
@@ -238,7 +239,8 @@ class SwarmSim:
                           self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"])
             swarm_rollout(w.arrays(), new.memory_arrays(), run, Recording(**rec), self.world.copter_params,
                           self.world.hinge_params, self.world.geometry, self.sonar, self.ranging.params, self.beacons,
-                          self.imu, self.random_walk, self.attraction, self.wall_check)
+                          self.imu, self.random_walk, self.attraction, self.wall_check,
+                          engine_grid(self.world.grid, w.n_envs, w.n_copters))
             new = replace(new, world=replace(w, step=w.step + T))
         counters = {
             "collisions": new.world.collisions - ws0.collisions,

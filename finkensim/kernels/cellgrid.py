@@ -40,11 +40,19 @@ scaling, and it would walk the 3 × 3 neighbourhoods of every cell the ray cross
 separately. Hits beyond ``max_range`` are not reported (t = inf), which is what a sonar needs (no
 echo within range reads max_range).
 
+**In the engine.** :class:`GridParams` (built by :func:`grid_params`) is the record the simulator's
+kernels take: ``on`` says whether this run's environments are large enough for the grid to pay
+(``simulation.grid_min_copters``), and the geometry. Kernels with a copter-copter loop take it with
+the per-environment buffers and run the grid query when ``on``, the brute force otherwise; both
+decide membership by the same exact test, so the results are identical (``tests/test_cellgrid.py``).
+Users so far: copter contacts (:func:`~finkensim.copters.update_contacts_env`, :func:`any_within_env`).
+
 **Kernels.** ``*_env`` functions are ``inline="always"`` per-environment kernels (arrays and
 numbers only) for compiled rollouts: allocate the grid buffers once per environment
 (:func:`grid_buffers`), call :func:`build_env` each step, then query. The batched wrappers
 (:func:`build_grid`, :func:`neighbour_counts`, :func:`neighbours_within`, :func:`raycast_fan`) loop
-over the leading environment axis with ``prange``. NumPy references are in the tests.
+over the leading environment axis with ``prange`` (:mod:`finkensim.kernels.cellgrid_batch`). NumPy references
+are in the tests.
 """
 from __future__ import annotations
 
@@ -52,13 +60,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 __all__ = [
-    "GridSpec", "grid_spec", "grid_buffers",
-    "cell_coord", "build_env", "row_slots", "query_env", "count_env", "raycast_fan_env",
-    "build_grid", "neighbour_counts", "neighbours_within", "raycast_fan",
+    "GridSpec", "grid_spec", "grid_buffers", "GridParams", "grid_params", "EngineGrid", "engine_grid", "env_grid",
+    "cell_coord", "build_env", "row_slots", "query_env", "count_env", "any_within_env", "raycast_fan_env",
 ]
 
 
@@ -103,6 +110,65 @@ def grid_buffers(n: int, spec: GridSpec):
     """Work buffers of one environment: (cell_start (C+1,), order (N,), spos (N, 2), cell_of (N,))."""
     return (np.zeros(spec.n_cells + 1, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros((n, 2)),
             np.zeros(n, dtype=np.int64))
+
+
+class GridParams(NamedTuple):
+    """The engine's grid as one numba record: ``on`` (use it; else the kernels run their brute force),
+    origin x0, y0 (m), cell side and its inverse (m, 1/m), nx, ny cells."""
+
+    on: bool
+    x0: float
+    y0: float
+    cell: float
+    inv_cell: float
+    nx: int
+    ny: int
+
+
+def grid_params(n_copters: int, width: float, length: float, query_range: float, min_copters: int) -> GridParams:
+    """The grid of an arena of width × length m for ``n_copters`` per environment: on when n_copters ≥
+    ``min_copters``, cells of side max(query_range, sqrt(area / n_copters)) — the query range makes a query scan
+    ≤ 3 × 3 cells; the second term keeps the number of cells (the build's O(C) part) at most the number of copters.
+    Off: a 1 × 1 grid that no kernel reads."""
+    n = max(1, int(n_copters))
+    if int(n_copters) < int(min_copters):
+        return GridParams(False, 0.0, 0.0, 1.0, 1.0, 1, 1)
+    spec = grid_spec(width, length, max(float(query_range), math.sqrt(width * length / n)))
+    return GridParams(True, spec.x0, spec.y0, spec.cell, spec.inv_cell, spec.nx, spec.ny)
+
+
+class EngineGrid(NamedTuple):
+    """:class:`GridParams` and the buffers of B environments as one flat numba record (a nested tuple of a record
+    and arrays does not pass through ``prange``): cell_start (B, C+1), order (B, N), spos (B, N, 2),
+    cell_of (B, N) — one environment's worth of empty buffers when the grid is off."""
+
+    on: bool
+    x0: float
+    y0: float
+    cell: float
+    inv_cell: float
+    nx: int
+    ny: int
+    cell_start: np.ndarray
+    order: np.ndarray
+    spos: np.ndarray
+    cell_of: np.ndarray
+
+
+def engine_grid(gp: GridParams, n_envs: int, n_copters: int) -> EngineGrid:
+    """The engine's grid record for B = ``n_envs`` environments of N = ``n_copters`` (buffers allocated once;
+    when the grid is off, empty ones with the same dtypes and ranks). Environment b's part is :func:`env_grid`."""
+    B, N, C = (n_envs, n_copters, gp.nx * gp.ny) if gp.on else (1, 0, 0)
+    return EngineGrid(*gp, np.zeros((B, C + 1), dtype=np.int64), np.zeros((B, N), dtype=np.int64),
+                      np.zeros((B, N, 2)), np.zeros((B, N), dtype=np.int64))
+
+
+@njit(cache=True, inline="always")
+def env_grid(g, b):
+    """Environment b's grid buffers (cell_start, order, spos, cell_of) of an :class:`EngineGrid` (the one empty
+    set when the grid is off)."""
+    i = np.int64(b) if g.on else np.int64(0)  # a prange index may be typed uint64
+    return g.cell_start[i], g.order[i], g.spos[i], g.cell_of[i]
 
 
 # The query box is widened by this relative amount so that rounding of q ± r can never drop a cell
@@ -239,6 +305,26 @@ def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
 
 
 @njit(cache=True, inline="always")
+def any_within_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+    """Whether some copter other than ``skip`` is strictly closer than r to (qx, qy): squared distance
+    (q − p)·(q − p) < r², the brute force's test (the sign of a difference does not change its square)."""
+    pad = BOX_PAD * (r + abs(qx) + abs(qy))
+    rb = r + pad
+    cell = 1.0 / inv_cell
+    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
+    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    r2 = r * r
+    for cy in range(cy0, cy1 + 1):
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        for k in range(k0, k1):
+            dx = qx - spos[k, 0]
+            dy = qy - spos[k, 1]
+            if dx * dx + dy * dy < r2 and order[k] != skip:
+                return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
                     spos, out_t, out_j):
     """Nearest copter-circle hit of each ray of a fan, within max_range.
@@ -290,144 +376,3 @@ def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, x0, y0, inv_cell, nx,
                 if t <= max_range and (t < out_t[k] or (t == out_t[k] and j < out_j[k])):
                     out_t[k] = t
                     out_j[k] = j
-
-
-# ---------------------------------------------------------------------------------------------
-# batched wrappers
-
-
-def _check_pos(pos) -> np.ndarray:
-    pos = np.ascontiguousarray(pos, dtype=np.float64)
-    if pos.ndim != 3 or pos.shape[2] != 2:
-        raise ValueError(f"pos has shape {pos.shape}: expected (B, N, 2) m")
-    if not np.all(np.isfinite(pos)):
-        raise ValueError("pos: coordinates must be finite")
-    return pos
-
-
-@njit(cache=True, parallel=True)
-def _build_batch(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
-    B, N, _ = pos.shape
-    for b in prange(B):
-        cell_of = np.empty(N, dtype=np.int64)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start[b], order[b], spos[b], cell_of)
-
-
-@njit(cache=True, parallel=True)
-def _counts_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, out):
-    B, N, _ = pos.shape
-    for b in prange(B):
-        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
-        order = np.empty(N, dtype=np.int64)
-        spos = np.empty((N, 2))
-        cell_of = np.empty(N, dtype=np.int64)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
-        for s in range(N):  # in cell order (cache friendly)
-            i = order[s]
-            skip = i if exclude_self else -1
-            out[b, i] = count_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start,
-                                  order, spos)
-
-
-@njit(cache=True, parallel=True)
-def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, idx, d2):
-    B, N, _ = pos.shape
-    K = idx.shape[2]
-    for b in prange(B):
-        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
-        order = np.empty(N, dtype=np.int64)
-        spos = np.empty((N, 2))
-        cell_of = np.empty(N, dtype=np.int64)
-        tmp_i = np.empty(N, dtype=np.int64)
-        tmp_d = np.empty(N)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
-        for s in range(N):  # in cell order (cache friendly)
-            i = order[s]
-            skip = i if exclude_self else -1
-            n = query_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
-                          spos, tmp_i, tmp_d)
-            counts[b, i] = n
-            for k in range(min(n, K)):
-                idx[b, i, k] = tmp_i[k]
-                d2[b, i, k] = tmp_d[k]
-            for k in range(min(n, K), K):
-                idx[b, i, k] = -1
-                d2[b, i, k] = np.inf
-
-
-@njit(cache=True, parallel=True)
-def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, x0, y0, inv_cell, nx, ny, out_t, out_j):
-    B, N, _ = pos.shape
-    R = ray_yaw.shape[0]
-    for b in prange(B):
-        cell_start = np.empty(nx * ny + 1, dtype=np.int64)
-        order = np.empty(N, dtype=np.int64)
-        spos = np.empty((N, 2))
-        cell_of = np.empty(N, dtype=np.int64)
-        dirs = np.empty((R, 2))
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
-        for s in range(N):  # in cell order (cache friendly)
-            i = order[s]
-            for k in range(R):
-                dirs[k, 0] = np.cos(yaw[b, i] + ray_yaw[k])
-                dirs[k, 1] = np.sin(yaw[b, i] + ray_yaw[k])
-            raycast_fan_env(pos[b, i, 0], pos[b, i, 1], dirs, max_range, radius, i, x0, y0, inv_cell, nx, ny,
-                            cell_start, order, spos, out_t[b, i], out_j[b, i])
-
-
-def build_grid(pos, spec: GridSpec):
-    """Grids of B environments: pos (B, N, 2) m → (cell_start (B, C+1), order (B, N), spos (B, N, 2))."""
-    pos = _check_pos(pos)
-    B, N, _ = pos.shape
-    cell_start = np.empty((B, spec.n_cells + 1), dtype=np.int64)
-    order = np.empty((B, N), dtype=np.int64)
-    spos = np.empty((B, N, 2))
-    _build_batch(pos, spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, cell_start, order, spos)
-    return cell_start, order, spos
-
-
-def neighbour_counts(pos, r: float, spec: GridSpec, exclude_self: bool = True) -> np.ndarray:
-    """Number of copters within r (m) of each copter: (B, N) int64 (itself excluded by default)."""
-    pos = _check_pos(pos)
-    out = np.empty(pos.shape[:2], dtype=np.int64)
-    _counts_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, out)
-    return out
-
-
-def neighbours_within(pos, r: float, spec: GridSpec, max_neighbours: int | None = None,
-                      exclude_self: bool = True):
-    """Fixed-capacity neighbour lists of every copter: copters within r (m).
-
-    Returns (counts (B, N) int64, idx (B, N, K) int64, d2 (B, N, K) m²): the first min(count, K)
-    entries of row (b, i) are its neighbours (grid order, not sorted) and their squared distances;
-    the rest are −1 / inf. ``counts`` is the true number even when it exceeds K (the list is then
-    truncated: check ``counts.max() <= K``). K = ``max_neighbours``, by default the largest count
-    (one extra counting pass).
-    """
-    pos = _check_pos(pos)
-    B, N, _ = pos.shape
-    if max_neighbours is None:
-        c = neighbour_counts(pos, r, spec, exclude_self)
-        max_neighbours = int(c.max()) if c.size else 0
-    K = int(max_neighbours)
-    counts = np.empty((B, N), dtype=np.int64)
-    idx = np.empty((B, N, K), dtype=np.int64)
-    d2 = np.empty((B, N, K))
-    _neighbours_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny,
-                      counts, idx, d2)
-    return counts, idx, d2
-
-
-def raycast_fan(pos, yaw, ray_yaw, max_range: float, radius: float, spec: GridSpec):
-    """Rays from every copter centre, at headings yaw (B, N) + ray_yaw (R,) rad, against the other copters'
-    circles (``radius`` m): (t (B, N, R) m, inf if no hit within max_range; j (B, N, R) copter hit or −1)."""
-    pos = _check_pos(pos)
-    B, N, _ = pos.shape
-    yaw = np.ascontiguousarray(np.broadcast_to(np.asarray(yaw, dtype=np.float64), (B, N)))
-    ray_yaw = np.ascontiguousarray(np.asarray(ray_yaw, dtype=np.float64).reshape(-1))
-    R = ray_yaw.shape[0]
-    out_t = np.empty((B, N, R))
-    out_j = np.empty((B, N, R), dtype=np.int64)
-    _raycast_batch(pos, yaw, ray_yaw, float(max_range), float(radius), spec.x0, spec.y0, spec.inv_cell, spec.nx,
-                   spec.ny, out_t, out_j)
-    return out_t, out_j

@@ -1,0 +1,136 @@
+"""The cell grid inside the engine: with ``simulation.grid_min_copters`` reached, copter-copter queries run on
+the grid (finkensim/kernels/cellgrid.py) and give the brute force's results bit for bit.
+
+References: the brute-force branch of the same kernel (gp.on = False) and a plain-NumPy overlap test written from
+the definition (two copters touch when their centres are closer than 2·radius).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numba import njit
+
+from finkensim.config import Config
+from finkensim.copters import update_contacts_env
+from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_params
+from finkensim.swarm import SwarmSim
+from finkensim.world import World
+
+
+@njit(cache=True)
+def _contacts(pos, radius, g, in_collision, collisions):
+    """update_contacts_env over a batch pos (B, N, 2) (no wall gaps: every copter far from the walls)."""
+    B, N, _ = pos.shape
+    gap = np.full(N, 1.0)
+    in_wall = np.zeros(N, dtype=np.bool_)
+    wall_contacts = np.zeros(N, dtype=np.int64)
+    for b in range(B):
+        update_contacts_env(pos[b], radius, gap, in_wall, wall_contacts, in_collision[b], collisions[b], g,
+                            env_grid(g, b))
+
+
+def _overlaps_reference(pos_b, radius):
+    diff = pos_b[:, None, :] - pos_b[None, :, :]
+    d2 = diff[..., 0] * diff[..., 0] + diff[..., 1] * diff[..., 1]
+    np.fill_diagonal(d2, np.inf)
+    return (d2 < (2.0 * radius) ** 2).any(axis=1)
+
+
+def _run_contacts(pos, radius, gp):
+    B, N, _ = pos.shape
+    in_collision = np.zeros((B, N), dtype=np.bool_)
+    collisions = np.zeros((B, N), dtype=np.int64)
+    _contacts(pos, radius, engine_grid(gp, B, N), in_collision, collisions)
+    return in_collision, collisions
+
+
+OFF = GridParams(False, 0.0, 0.0, 1.0, 1.0, 1, 1)
+
+
+@st.composite
+def swarms(draw):
+    """Positions in a width × length arena, some outside it, some on a lattice of spacing exactly 2·radius (exact
+    ties of the strict test), some clustered."""
+    n = draw(st.integers(2, 60))
+    width, length = draw(st.floats(0.5, 20.0)), draw(st.floats(0.5, 20.0))
+    radius = draw(st.sampled_from([0.05, 0.1, 0.125, 0.3]))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform([-1.0, -1.0], [width + 1.0, length + 1.0], size=(2, n, 2))
+    k = draw(st.integers(0, n))
+    lattice = 2.0 * radius * rng.integers(0, 4, size=(2, k, 2))
+    pos[:, :k] = lattice + pos[:, :1]  # lattice points relative to one copter: exact distances 2r·integer
+    if draw(st.booleans()):
+        pos[:, k:] = pos[:, k:] * 0.05 + width / 2  # a tight cluster
+    return pos, width, length, radius, draw(st.floats(0.01, 3.0))
+
+
+@settings(max_examples=150, deadline=None)
+@given(swarms())
+def test_contacts_on_the_grid_equal_the_brute_force(scene):
+    pos, width, length, radius, query = scene
+    on = grid_params(pos.shape[1], width, length, query, min_copters=0)
+    assert on.on
+    got = _run_contacts(pos, radius, on)
+    want = _run_contacts(pos, radius, OFF)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    for b in range(pos.shape[0]):
+        np.testing.assert_array_equal(want[0][b], _overlaps_reference(pos[b], radius))
+
+
+def test_grid_params_switch_and_cell_size():
+    assert not grid_params(10, 3.0, 4.0, 0.2, min_copters=256).on
+    gp = grid_params(10_000, 100.0, 120.0, 0.2, min_copters=256)
+    assert gp.on and gp.cell == pytest.approx(np.sqrt(100.0 * 120.0 / 10_000))  # cells ≤ copters
+    assert gp.nx * gp.ny <= 10_000 * 1.1
+    assert grid_params(300, 3.0, 4.0, 2.5, min_copters=256).cell == 2.5  # the query range when larger
+    off = engine_grid(OFF, 64, 10)
+    assert [a.shape for a in off[7:]] == [(1, 1), (1, 0), (1, 0, 2), (1, 0)]
+
+
+CROWDED = {"copters.n": 40, "copters.min_separation": 0.05, "arena.width": 3.0, "arena.length": 4.0}
+
+
+@pytest.mark.parametrize("behaviour", ["random_walk", "attraction_repulsion"])
+def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behaviour):
+    """40 copters in the lab arena (many contacts), every sensor on: the records and counters match exactly."""
+    cfg = Config().replace({**CROWDED, "behaviour.kind": behaviour})
+    grid = SwarmSim(cfg.replace({"simulation.grid_min_copters": 0}))
+    brute = SwarmSim(cfg)
+    assert grid.world.grid.on and not brute.world.grid.on
+    runs = [sim.rollout(sim.init(n_envs=3, seed=11), 120) for sim in (grid, brute)]
+    (s_g, r_g), (s_b, r_b) = runs
+    assert r_b.counters["collisions"].sum() > 0  # the test exercises contacts
+    for name in ("collisions", "wall_contacts"):
+        np.testing.assert_array_equal(r_g.counters[name], r_b.counters[name])
+    np.testing.assert_array_equal(r_g.pose, r_b.pose)
+    np.testing.assert_array_equal(r_g.sonar, r_b.sonar)
+    np.testing.assert_array_equal(s_g.world.in_collision, s_b.world.in_collision)
+
+
+def test_world_step_and_vector_env_step_use_the_grid_identically():
+    cfg = Config().replace(CROWDED)
+    worlds = [World(cfg.replace({"simulation.grid_min_copters": m})) for m in (0, 10**6)]
+    states = [w.init(n_envs=4, seed=2) for w in worlds]
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        cmd = rng.normal(0.0, 0.5, size=(4, 40, 2))
+        states = [w.step(s, cmd) for w, s in zip(worlds, states)]
+    assert states[1].collisions.sum() > 0
+    np.testing.assert_array_equal(states[0].collisions, states[1].collisions)
+    np.testing.assert_array_equal(states[0].pos, states[1].pos)
+
+    from finkensim.swarm.control import Controlled
+    sims = [SwarmSim(cfg.replace({"simulation.grid_min_copters": m})) for m in (0, 10**6)]
+    ctls = [Controlled(s) for s in sims]
+    sts = [s.init(n_envs=4, seed=5) for s in sims]
+    for _ in range(40):
+        cmd = rng.normal(0.0, 0.5, size=(4, 40, 2))
+        out = [c.step(s, cmd) for c, s in zip(ctls, sts)]
+        sts = [o[0] for o in out]
+        np.testing.assert_array_equal(out[0][1].sonar, out[1][1].sonar)
+    np.testing.assert_array_equal(sts[0].world.collisions, sts[1].world.collisions)
+    assert sts[1].world.collisions.sum() > 0
