@@ -187,8 +187,9 @@ class SimulationConfig(_Section):
     duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
     seed: int = _f(0, "", 0, 2**63 - 1)
     n_envs: int = _f(1, "", 1, 10_000_000, doc="parallel environments (leading array axis)")
-    grid_min_copters: int = _f(256, "", 0, 2**62, doc="copters per environment from which copter-copter queries "
-                               "use a cell grid instead of the brute force (identical results; 0 = always)")
+    grid_min_copters: int = _f(64, "", 0, 2**62, doc="copters per environment from which copter-copter queries "
+                               "use a cell grid instead of the brute force (identical results; 0 = always; "
+                               "the break-even measured by `python -m benchmarks.grid_threshold`)")
 
 
 @dataclass(frozen=True)

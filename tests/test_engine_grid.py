@@ -82,7 +82,7 @@ def test_contacts_on_the_grid_equal_the_brute_force(scene):
 
 
 def test_grid_params_switch_and_cell_size():
-    assert not grid_params(10, 3.0, 4.0, 0.2, min_copters=256).on
+    assert not grid_params(10, 3.0, 4.0, 0.2, min_copters=64).on
     gp = grid_params(10_000, 100.0, 120.0, 0.2, min_copters=256)
     assert gp.on and gp.cell == pytest.approx(np.sqrt(100.0 * 120.0 / 10_000))  # cells ≤ copters
     assert gp.nx * gp.ny <= 10_000 * 1.1
