@@ -140,7 +140,7 @@ def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collis
     N = pos.shape[0]
     lim2 = (2.0 * radius) ** 2
     if gp.on:
-        cell_start, order, spos, cell_of = grid
+        cell_start, order, spos, cell_of = grid[0], grid[1], grid[2], grid[3]
         build_env(pos, gp.x0, gp.y0, gp.inv_cell, gp.nx, gp.ny, cell_start, order, spos, cell_of)
     for i in range(N):
         overlap = False

@@ -15,6 +15,8 @@ from numba import njit
 from finkensim.config import Config
 from finkensim.copters import update_contacts_env
 from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_params
+from finkensim.sensors.ranging import RangingModel
+from finkensim.sensors.ranging_kernels import ranging_grid_env
 from finkensim.swarm import SwarmSim
 from finkensim.world import World
 
@@ -81,6 +83,33 @@ def test_contacts_on_the_grid_equal_the_brute_force(scene):
         np.testing.assert_array_equal(want[0][b], _overlaps_reference(pos[b], radius))
 
 
+@njit(cache=True)
+def _ranging(pos, beacons, p, g, out):
+    for b in range(pos.shape[0]):
+        ranging_grid_env(pos[b], beacons, np.int64(7), np.int64(b), np.int64(3), p, out[b], g, env_grid(g, b))
+
+
+@pytest.fixture(scope="module")
+def ranging_models():
+    return {mode: RangingModel(mode) for mode in ("mixture", "gaussian", "seed")}
+
+
+@settings(max_examples=60, deadline=None)
+@given(swarms(), st.sampled_from(["mixture", "gaussian", "seed"]), st.booleans())
+def test_ranging_on_the_grid_equals_the_brute_force(ranging_models, scene, mode, on_the_range):
+    """Every reading bit for bit, including copters exactly max_range apart (placed on the range circle)."""
+    pos, width, length, _, query = scene
+    p = ranging_models[mode].params
+    if on_the_range:  # copter 1 at exactly max_range from copter 0 along an axis (an exact tie of the rule)
+        pos[:, 1] = pos[:, 0] + np.array([p.max_range, 0.0])
+    B, N, _ = pos.shape
+    beacons = np.array([[0.5, 0.5], [width, length]])
+    out = [np.full((B, N, N + 2), np.nan) for _ in range(2)]
+    _ranging(pos, beacons, p, engine_grid(grid_params(N, width, length, query, min_copters=0), B, N), out[0])
+    _ranging(pos, beacons, p, engine_grid(OFF, B, N), out[1])
+    np.testing.assert_array_equal(out[0], out[1])
+
+
 def test_grid_params_switch_and_cell_size():
     assert not grid_params(10, 3.0, 4.0, 0.2, min_copters=64).on
     gp = grid_params(10_000, 100.0, 120.0, 0.2, min_copters=256)
@@ -88,15 +117,17 @@ def test_grid_params_switch_and_cell_size():
     assert gp.nx * gp.ny <= 10_000 * 1.1
     assert grid_params(300, 3.0, 4.0, 2.5, min_copters=256).cell == 2.5  # the query range when larger
     off = engine_grid(OFF, 64, 10)
-    assert [a.shape for a in off[7:]] == [(1, 1), (1, 0), (1, 0, 2), (1, 0)]
+    assert [a.shape for a in off[7:]] == [(1, 1), (1, 0), (1, 0, 2), (1, 0), (1, 0), (1, 0)]
 
 
-CROWDED = {"copters.n": 40, "copters.min_separation": 0.05, "arena.width": 3.0, "arena.length": 4.0}
+# crowded (many contacts) and large enough that many pairs are beyond the ranging range
+CROWDED = {"copters.n": 40, "copters.min_separation": 0.05, "arena.width": 4.5, "arena.length": 6.0}
 
 
 @pytest.mark.parametrize("behaviour", ["random_walk", "attraction_repulsion"])
 def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behaviour):
-    """40 copters in the lab arena (many contacts), every sensor on: the records and counters match exactly."""
+    """40 copters in a 4.5 m × 6 m arena (contacts, pairs out of ranging range), every sensor on: the records and
+    counters match exactly."""
     cfg = Config().replace({**CROWDED, "behaviour.kind": behaviour})
     grid = SwarmSim(cfg.replace({"simulation.grid_min_copters": 0}))
     brute = SwarmSim(cfg)
@@ -108,6 +139,7 @@ def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behavio
         np.testing.assert_array_equal(r_g.counters[name], r_b.counters[name])
     np.testing.assert_array_equal(r_g.pose, r_b.pose)
     np.testing.assert_array_equal(r_g.sonar, r_b.sonar)
+    np.testing.assert_array_equal(r_g.ranging, r_b.ranging)
     np.testing.assert_array_equal(s_g.world.in_collision, s_b.world.in_collision)
 
 
@@ -132,5 +164,6 @@ def test_world_step_and_vector_env_step_use_the_grid_identically():
         out = [c.step(s, cmd) for c, s in zip(ctls, sts)]
         sts = [o[0] for o in out]
         np.testing.assert_array_equal(out[0][1].sonar, out[1][1].sonar)
+        np.testing.assert_array_equal(out[0][1].ranging, out[1][1].ranging)
     np.testing.assert_array_equal(sts[0].world.collisions, sts[1].world.collisions)
     assert sts[1].world.collisions.sum() > 0

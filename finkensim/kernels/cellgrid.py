@@ -45,7 +45,8 @@ kernels take: ``on`` says whether this run's environments are large enough for t
 (``simulation.grid_min_copters``), and the geometry. Kernels with a copter-copter loop take it with
 the per-environment buffers and run the grid query when ``on``, the brute force otherwise; both
 decide membership by the same exact test, so the results are identical (``tests/test_cellgrid.py``).
-Users so far: copter contacts (:func:`~finkensim.copters.update_contacts_env`, :func:`any_within_env`).
+Users so far: copter contacts (:func:`~finkensim.copters.update_contacts_env`, :func:`any_within_env`) and
+virtual ranging (:func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`, :func:`query_env`).
 
 **Kernels.** ``*_env`` functions are ``inline="always"`` per-environment kernels (arrays and
 numbers only) for compiled rollouts: allocate the grid buffers once per environment
@@ -140,7 +141,8 @@ def grid_params(n_copters: int, width: float, length: float, query_range: float,
 class EngineGrid(NamedTuple):
     """:class:`GridParams` and the buffers of B environments as one flat numba record (a nested tuple of a record
     and arrays does not pass through ``prange``): cell_start (B, C+1), order (B, N), spos (B, N, 2),
-    cell_of (B, N) — one environment's worth of empty buffers when the grid is off."""
+    cell_of (B, N) of :func:`build_env`, and query outputs found_idx (B, N), found_d2 (B, N) of
+    :func:`query_env` — one environment's worth of empty buffers when the grid is off."""
 
     on: bool
     x0: float
@@ -153,6 +155,8 @@ class EngineGrid(NamedTuple):
     order: np.ndarray
     spos: np.ndarray
     cell_of: np.ndarray
+    found_idx: np.ndarray
+    found_d2: np.ndarray
 
 
 def engine_grid(gp: GridParams, n_envs: int, n_copters: int) -> EngineGrid:
@@ -160,15 +164,16 @@ def engine_grid(gp: GridParams, n_envs: int, n_copters: int) -> EngineGrid:
     when the grid is off, empty ones with the same dtypes and ranks). Environment b's part is :func:`env_grid`."""
     B, N, C = (n_envs, n_copters, gp.nx * gp.ny) if gp.on else (1, 0, 0)
     return EngineGrid(*gp, np.zeros((B, C + 1), dtype=np.int64), np.zeros((B, N), dtype=np.int64),
-                      np.zeros((B, N, 2)), np.zeros((B, N), dtype=np.int64))
+                      np.zeros((B, N, 2)), np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64),
+                      np.zeros((B, N)))
 
 
 @njit(cache=True, inline="always")
 def env_grid(g, b):
-    """Environment b's grid buffers (cell_start, order, spos, cell_of) of an :class:`EngineGrid` (the one empty
-    set when the grid is off)."""
+    """Environment b's grid buffers (cell_start, order, spos, cell_of, found_idx, found_d2) of an
+    :class:`EngineGrid` (the one empty set when the grid is off)."""
     i = np.int64(b) if g.on else np.int64(0)  # a prange index may be typed uint64
-    return g.cell_start[i], g.order[i], g.spos[i], g.cell_of[i]
+    return g.cell_start[i], g.order[i], g.spos[i], g.cell_of[i], g.found_idx[i], g.found_d2[i]
 
 
 # The query box is widened by this relative amount so that rounding of q ± r can never drop a cell

@@ -8,7 +8,8 @@ with these functions, fed by the :class:`RangingParams` record (``RangingModel.p
   ``max_range``; mode dispatch; clip at 0), built from :func:`fast_reading` (modes ``mixture``,
   ``gaussian``, ``none``) and :func:`seed_reading` (mode ``seed``); :func:`pick_component` draws the
   mixture component from the responsibility table (:mod:`finkensim.sensors.ranging_table`);
-- :func:`ranging_env`: one environment's readings (N, N + M); :func:`ranging_batch` runs it over a
+- :func:`ranging_env`: one environment's readings (N, N + M); :func:`ranging_grid_env` the same readings with
+  the pairs in range found on the engine's cell grid (large swarms); :func:`ranging_batch` runs it over a
   batch in parallel; :func:`sample_readings` reads a list of true distances as one copter's row;
 - :func:`row_key`: the counter key of one measuring copter's row (from Python).
 
@@ -36,11 +37,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ..kernels.cellgrid import build_env, query_env
 from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
 
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
-    "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_reading",
+    "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
+    "ranging_reading",
     "row_key", "sample_readings", "seed_reading",
 ]
 
@@ -192,6 +195,51 @@ def ranging_env(pos_b, beacons, seed, env, step, p, out):
             else:
                 dx = beacons[j - n, 0] - xi
                 dy = beacons[j - n, 1] - yi
+            out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
+
+
+@njit(cache=True, inline="always")
+def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
+    """:func:`ranging_env` with the copter pairs found on a cell grid when ``g.on``: the same readings, bit for bit.
+
+    g: a :class:`~finkensim.kernels.cellgrid.EngineGrid`, grid: this environment's buffers of it
+    (:func:`~finkensim.kernels.cellgrid.env_grid`; the grid is rebuilt here). Copters farther than ``max_range``
+    read exactly ``max_range`` without a random number, so the row is filled with it and only the copters the grid
+    finds within max_range·(1 + 1e-9) (a superset of those the exact rule keeps: the test itself stays the one
+    in :func:`ranging_reading`, on the same sqrt(dx² + dy²)) are drawn; beacons as in :func:`ranging_env`.
+    """
+    if not g.on:
+        ranging_env(pos_b, beacons, seed, env, step, p, out)
+        return
+    n = pos_b.shape[0]
+    m = beacons.shape[0]
+    cell_start, order, spos, cell_of, found, found_d2 = grid
+    build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
+    reach = p.max_range * (1.0 + 1e-9) if p.max_range < 1e300 else np.inf
+    for i in range(n):
+        key = counter_key(seed, env, step, i, STREAM_RANGING)
+        xi = pos_b[i, 0]
+        yi = pos_b[i, 1]
+        for j in range(n):
+            out[i, j] = p.max_range
+        out[i, i] = 0.0
+        if reach < np.inf:
+            count = query_env(xi, yi, reach, i, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, found,
+                              found_d2)
+        else:  # every copter is in range: no grid query can narrow it down
+            count = 0
+            for j in range(n):
+                if j != i:
+                    found[count] = j
+                    count += 1
+        for c in range(count):
+            j = found[c]
+            dx = pos_b[j, 0] - xi
+            dy = pos_b[j, 1] - yi
+            out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
+        for j in range(n, n + m):
+            dx = beacons[j - n, 0] - xi
+            dy = beacons[j - n, 1] - yi
             out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
 
 

@@ -24,7 +24,7 @@ from numba import njit, prange
 
 from ..behaviours.attraction import body_to_world_env
 from ..sensors.imu import imu_env
-from ..sensors.ranging_kernels import ranging_env
+from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, ultrasonic_env
 from ..kernels.cellgrid import engine_grid, env_grid
 from ..world import step_env
@@ -36,7 +36,7 @@ __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial
 # identical results, a fraction of the compile time)
 _plates_fn = njit(cache=True)(displaced_plates_env.py_func)
 _sonar_fn = njit(cache=True)(ultrasonic_env.py_func)
-_ranging_fn = njit(cache=True)(ranging_env.py_func)
+_ranging_fn = njit(cache=True)(ranging_grid_env.py_func)
 _imu_fn = njit(cache=True)(imu_env.py_func)
 _body_to_world_fn = njit(cache=True)(body_to_world_env.py_func)
 _step_fn = njit(cache=True)(step_env.py_func)
@@ -54,7 +54,7 @@ class ControlReadings(NamedTuple):
 
 
 @njit(cache=True)
-def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs):
+def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs, grid):
     """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances)."""
     pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
     seed = run.seed
@@ -64,7 +64,7 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
         _sonar_fn(w.pos[b], w.yaw[b], pa, pb, geo.width, geo.length, sp, seed, env, k, sonar_buf, dist, hit_kind,
                   hit, slot, son[b])
     if run.do_ranging:
-        _ranging_fn(w.pos[b], beacons, seed, env, k, rp, rng[b])
+        _ranging_fn(w.pos[b], beacons, seed, env, k, rp, rng[b], grid, env_grid(grid, b))
     if run.do_imu:
         _imu_fn(w.acc[b], w.yaw[b], w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
 
@@ -82,7 +82,7 @@ def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, i
         _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N), grid,
                  env_grid(grid, b))
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
-               geo, sp, rp, beacons, ip, bufs)
+               geo, sp, rp, beacons, ip, bufs, grid)
 
 
 @njit(cache=True, parallel=True)

@@ -25,7 +25,7 @@ from ..behaviours.attraction import attraction_env, body_to_world_env
 from ..behaviours.random_walk import random_walk_env
 from ..behaviours.wall_check import dead_reckon_env, wall_check_env
 from ..sensors.imu import imu_env
-from ..sensors.ranging_kernels import ranging_env
+from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
 from ..world import step_env
@@ -44,7 +44,7 @@ def _twin(kernel):
 _plates_fn = _twin(displaced_plates_env)
 _sonar_fn = _twin(ultrasonic_env)
 _down_fn = _twin(down_env)
-_ranging_fn = _twin(ranging_env)
+_ranging_fn = _twin(ranging_grid_env)
 _imu_fn = _twin(imu_env)
 _dead_reckon_fn = _twin(dead_reckon_env)
 _wall_check_fn = _twin(wall_check_env)
@@ -158,7 +158,7 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         if run.do_down:
             _down_fn(alt, sp, seed, env, k, down)
         if run.do_ranging:
-            _ranging_fn(pos, beacons, seed, env, k, rp, rng)
+            _ranging_fn(pos, beacons, seed, env, k, rp, rng, grid, grid_b)
         if run.do_imu:
             _imu_fn(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
             _dead_reckon_fn(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
