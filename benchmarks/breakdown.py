@@ -61,7 +61,7 @@ def t_hinges(theta, omega, integ, dist, hp, lever, dt, reps):
 
 
 @njit(cache=True)
-def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp, seed, reps, ideal_only):
+def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp, g, seed, reps, ideal_only):
     B, N, _ = pos.shape
     S = plate_a.shape[0]
     pa = np.empty((S, 2))
@@ -76,9 +76,10 @@ def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp,
         for b in range(B):
             displaced_plates_env(theta[b], plate_a, plate_b, normal, lever, pa, pb)
             if ideal_only:
-                ideal_env(pos[b], yaw[b], pa, pb, width, length, sp, buf, dist, kind, hit)
+                ideal_env(pos[b], yaw[b], pa, pb, width, length, sp, buf, dist, kind, hit, g, env_grid(g, 0))
             else:
-                ultrasonic_env(pos[b], yaw[b], pa, pb, width, length, sp, seed, b, r, buf, dist, kind, hit, slot, out)
+                ultrasonic_env(pos[b], yaw[b], pa, pb, width, length, sp, seed, b, r, (buf, dist, kind, hit, slot), out,
+                               g, env_grid(g, 0))
 
 
 @njit(cache=True)
@@ -137,7 +138,8 @@ def breakdown(n: int, b: int = 64, reps: int = 20, warm_steps: int = 100) -> dic
     cutoff = max(world.hinge_params.threshold, a.lever)  # as world.step_env
     for k in range(b):
         nearest_body_distance_within_env(a.seg_a, a.seg_b, s.pos[k], world.copter_params.radius, cutoff, dist[k])
-    geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp, 1)
+    geo = (ws.pos, ws.yaw, ws.theta, a.plate_a, a.plate_b, a.normal, a.lever, a.width, a.length, sp,
+           engine_grid(world.grid, 1, n), 1)
     rows = {
         "world step (move, contacts, plate distances, hinges)": _best(
             t_world, (s.arrays(), world.copter_params, world.hinge_params, world.geometry, world.dt,

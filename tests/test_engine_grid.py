@@ -124,11 +124,17 @@ def test_grid_params_switch_and_cell_size():
 CROWDED = {"copters.n": 40, "copters.min_separation": 0.05, "arena.width": 4.5, "arena.length": 6.0}
 
 
-@pytest.mark.parametrize("behaviour", ["random_walk", "attraction_repulsion"])
-def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behaviour):
-    """40 copters in a 4.5 m × 6 m arena (contacts, pairs out of ranging range), every sensor on: the records and
-    counters match exactly."""
-    cfg = Config().replace({**CROWDED, "behaviour.kind": behaviour})
+GEOMETRIC = {"sonar.crosstalk": "geometric", "sonar.beam": "cone", "sonar.beam_rays": 5, "sonar.offset": 0.05,
+             "sonar.max_range": 2.0}
+
+
+@pytest.mark.parametrize("behaviour,sonar", [("random_walk", {}), ("attraction_repulsion", {}),
+                                             ("attraction_repulsion", GEOMETRIC)])
+def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behaviour, sonar):
+    """40 copters in a 4.5 m × 6 m arena (contacts, copters beyond the sonar and ranging ranges), every sensor on,
+    also with geometric cross-talk and a 5-ray cone from sonars off the centre: records and counters match
+    exactly."""
+    cfg = Config().replace({**CROWDED, "behaviour.kind": behaviour, **sonar})
     grid = SwarmSim(cfg.replace({"simulation.grid_min_copters": 0}))
     brute = SwarmSim(cfg)
     assert grid.world.grid.on and not brute.world.grid.on
@@ -140,6 +146,9 @@ def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behavio
     np.testing.assert_array_equal(r_g.pose, r_b.pose)
     np.testing.assert_array_equal(r_g.sonar, r_b.sonar)
     np.testing.assert_array_equal(r_g.ranging, r_b.ranging)
+    np.testing.assert_array_equal(r_g.sonar_ideal, r_b.sonar_ideal)
+    np.testing.assert_array_equal(r_g.sonar_hit, r_b.sonar_hit)
+    assert (r_b.sonar_hit == 2).any()  # copter echoes happen
     np.testing.assert_array_equal(s_g.world.in_collision, s_b.world.in_collision)
 
 

@@ -407,8 +407,9 @@ def _culled_vs_full(ox, oy, dx, dy, pos_b, radius, pa, pb, width, length):
     bands = plate_bands(pa, pb, width, length)
     out = np.empty((ox.shape[0], 4))
     for i in range(ox.shape[0]):
-        t1, k1 = cast_ray_culled(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, bands)
-        t2, k2 = cast_ray(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length)
+        everyone = np.empty(0, dtype=np.int64)
+        t1, k1 = cast_ray_culled(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, bands, everyone, -1)
+        t2, k2 = cast_ray(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, everyone, -1)
         out[i, 0] = t1
         out[i, 1] = k1
         out[i, 2] = t2
@@ -589,7 +590,7 @@ def _crosstalk_both(sonar_buf, slot, sp):
     out = np.empty((N, 4, 2))
     for n in range(N):
         for k in range(4):
-            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp)
+            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp, np.empty(0, dtype=np.int64), -1)
             out[n, k, 1] = _crosstalk_plain(n, k, sonar_buf, slot, sp)
     return out
 

@@ -225,6 +225,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
     dist = np.empty((N, S))
     kind = np.empty((N, S), dtype=np.int64)
     hit = np.empty((N, S, 2))
+    all_ = np.empty(0, dtype=np.int64)  # "every copter" for the ray and cross-talk searches
     shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
     for p in range(P):
         b = poses.bulge[k, p]
@@ -244,10 +245,11 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
                     out_kind[ti, n, s, m] = HIT_NONE
                     out_xtalk[ti, n, s, m] = np.inf
                     continue
-                _ideal_ray_fn(n, s, pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, bands, dist, kind, hit)
+                _ideal_ray_fn(n, s, pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, bands, dist, kind, hit, all_,
+                              -1)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sp)
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sp, all_, -1)
 
 
 @njit(cache=True, parallel=True)
@@ -337,7 +339,8 @@ def sonar_features(poses, w, sp, times, sigma_xy, sigma_yaw, out):
         for n in range(N):
             wd = min(min(P2[n, 0], w.width - P2[n, 0]), min(P2[n, 1], w.length - P2[n, 1]))
             for s in range(S):
-                t_, hk, hx, hy = sonar_hit(n, s, P2, poses.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands)
+                t_, hk, hx, hy = sonar_hit(n, s, P2, poses.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands,
+                                           np.empty(0, dtype=np.int64), -1)
                 o = out[ti, n, s]
                 o[6] = wd
                 if t_ > sp.max_range:

@@ -65,7 +65,7 @@ from numba import njit
 
 
 __all__ = [
-    "GridSpec", "grid_spec", "grid_buffers", "GridParams", "grid_params", "EngineGrid", "engine_grid", "env_grid",
+    "GridSpec", "grid_spec", "grid_buffers", "GridParams", "NO_GRID", "grid_params", "EngineGrid", "engine_grid", "env_grid",
     "cell_coord", "build_env", "row_slots", "query_env", "count_env", "any_within_env", "raycast_fan_env",
 ]
 
@@ -126,6 +126,10 @@ class GridParams(NamedTuple):
     ny: int
 
 
+#: a grid that is off (the kernels run their brute force); with empty buffers wherever a kernel wants some
+NO_GRID = GridParams(False, 0.0, 0.0, 1.0, 1.0, 1, 1)
+
+
 def grid_params(n_copters: int, width: float, length: float, query_range: float, min_copters: int) -> GridParams:
     """The grid of an arena of width × length m for ``n_copters`` per environment: on when n_copters ≥
     ``min_copters``, cells of side max(query_range, sqrt(area / n_copters)) — the query range makes a query scan
@@ -133,7 +137,7 @@ def grid_params(n_copters: int, width: float, length: float, query_range: float,
     Off: a 1 × 1 grid that no kernel reads."""
     n = max(1, int(n_copters))
     if int(n_copters) < int(min_copters):
-        return GridParams(False, 0.0, 0.0, 1.0, 1.0, 1, 1)
+        return NO_GRID
     spec = grid_spec(width, length, max(float(query_range), math.sqrt(width * length / n)))
     return GridParams(True, spec.x0, spec.y0, spec.cell, spec.inv_cell, spec.nx, spec.ny)
 

@@ -43,12 +43,16 @@ def box_exit(ox, oy, dx, dy, width, length):
 
 
 @njit(cache=True, inline="always")
-def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind):
-    """Nearest of (best, kind) and the hits of the unit ray on every copter circle except ``self_n``.
+def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand):
+    """Nearest of (best, kind) and the hits of the unit ray on the copter circles except ``self_n``.
 
-    pos_b (N, 2) m centres, radius m. Returns (t m, kind); a tie keeps the earlier hit.
+    pos_b (N, 2) m centres, radius m; the copters tested: all when ``n_cand`` < 0, else cand[:n_cand] (int64
+    indices, e.g. those a cell grid found near the ray's origin). Returns (t m, kind): the minimum over the
+    copters, so the order they are tested in does not matter (a tie keeps the earlier hit, of equal t).
     """
-    for m in range(pos_b.shape[0]):
+    M = pos_b.shape[0] if n_cand < 0 else n_cand
+    for c in range(M):
+        m = c if n_cand < 0 else cand[c]
         if m == self_n:
             continue
         t = ray_circle(ox, oy, dx, dy, pos_b[m, 0], pos_b[m, 1], radius)
@@ -59,11 +63,11 @@ def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind):
 
 
 @njit(cache=True, inline="always")
-def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length):
+def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, cand, n_cand):
     """Nearest hit of one unit ray for one environment: (t m, hit kind HIT_WALL / HIT_COPTER).
 
-    Plates pa, pb (S, 2) first, then the boundary, then every copter circle except ``self_n``;
-    a tie keeps the earlier object.
+    Plates pa, pb (S, 2) first, then the boundary, then the copter circles except ``self_n`` (all when
+    ``n_cand`` < 0, else cand[:n_cand], see :func:`copter_hits`); a tie keeps the earlier object.
     """
     best = np.inf
     kind = HIT_NONE
@@ -76,7 +80,7 @@ def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length):
     if t < best:
         best = t
         kind = HIT_WALL
-    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind)
+    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -214,7 +218,7 @@ _cast_ray_fn = njit(cache=True)(cast_ray.py_func)
 
 
 @njit(cache=True, inline="always")
-def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands):
+def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands, cand, n_cand):
     """:func:`cast_ray` testing only the plates the ray can reach before the net (same result, bit for bit).
 
     ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step.
@@ -227,7 +231,7 @@ def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length
             and abs(dx) + abs(dy) > 0.5)
     t_box = box_exit(ox, oy, dx, dy, width, length) if fast else np.inf
     if not (t_box < np.inf):
-        return _cast_ray_fn(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length)
+        return _cast_ray_fn(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, cand, n_cand)
     n = pa.shape[0] // 4
     eps = _cull_eps(width, length)
     t_end = t_box + eps
@@ -252,5 +256,5 @@ def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length
     kind = HIT_WALL  # a plate or the net (t_box is finite)
     if t_box < best:
         best = t_box
-    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind)
+    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..kernels.cellgrid import build_env, query_env
 from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
 from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
@@ -82,12 +83,13 @@ def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
 
 
 @njit(cache=True, inline="always")
-def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands):
+def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, cand, n_cand):
     """Nearest echo of sonar k of copter n over the rays of its beam, not limited to the range.
 
     Geometry as :func:`ideal_env` (sonar_buf from :func:`sonar_poses_env`, bands from
-    :func:`~finkensim.kernels.raycast.plate_bands`). Returns (t m, kind HIT_*, hx m, hy m): the distance
-    (inf when a ray escapes nothing — never inside the arena), what was hit, and where (NaN if nothing).
+    :func:`~finkensim.kernels.raycast.plate_bands`); the copters tested: all when ``n_cand`` < 0, else
+    cand[:n_cand] (:func:`~finkensim.kernels.raycast.copter_hits`). Returns (t m, kind HIT_*, hx m, hy m): the
+    distance (inf when a ray escapes nothing — never inside the arena), what was hit, and where (NaN if nothing).
     """
     ox = sonar_buf[n, k, 0]
     oy = sonar_buf[n, k, 1]
@@ -105,7 +107,7 @@ def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands):
             a = psi + sp.ray_angles[r]
             dx = np.cos(a)
             dy = np.sin(a)
-        t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands)
+        t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands, cand, n_cand)
         if t < best:
             best = t
             bkind = hk
@@ -115,9 +117,10 @@ def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands):
 
 
 @njit(cache=True, inline="always")
-def ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit):
-    """Ideal reading of sonar k of copter n into dist[n, k], kind[n, k], hit[n, k] (as :func:`ideal_env`)."""
-    best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands)
+def ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit, cand, n_cand):
+    """Ideal reading of sonar k of copter n into dist[n, k], kind[n, k], hit[n, k] (as :func:`ideal_env`; copters
+    tested as :func:`sonar_hit`)."""
+    best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, cand, n_cand)
     if best > sp.max_range:
         dist[n, k] = sp.max_range
         kind[n, k] = HIT_NONE
@@ -132,19 +135,35 @@ def ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, d
 
 
 @njit(cache=True, inline="always")
-def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit):
+def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit, g, grid):
     """Ideal horizontal readings of one environment.
 
     pos_b (N, 2) m, yaw_b (N,) rad, pa/pb (S_p, 2) m displaced plate surfaces
     (:func:`displaced_plates_env`), width/length m. Writes sonar_buf (N, S, 4) (see
     :func:`sonar_poses_env`), dist (N, S) m (max_range when no echo), kind (N, S) int (HIT_*),
     hit (N, S, 2) m (nearest hit point, also beyond range).
+
+    g: an :class:`~finkensim.kernels.cellgrid.EngineGrid` (or a record with its ``on`` and geometry fields), grid:
+    this environment's buffers of it. When ``g.on``, the copters each ray is tested against are those the grid
+    finds within max_range + radius + |offset| of the copter (rebuilt here): every copter a ray can hit within the
+    range, so dist and kind are the brute force's bit for bit; a ray without an echo within range may then report
+    a farther wall point in ``hit`` where the brute force reports a copter beyond the range.
     """
     sonar_poses_env(pos_b, yaw_b, sp, sonar_buf)
     bands = plate_bands(pa, pb, width, length)
+    found = grid[4]
+    if g.on:
+        build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0], grid[1], grid[2], grid[3])
+    # a hit at t ≤ max_range from the sonar has its circle's centre within t + radius of the sonar (exactly; the
+    # computed t of a grazing ray can be off by ~sqrt(eps)·scale ≈ 1e-8·scale, hence the 1e-6 margin)
+    reach = (sp.max_range + sp.radius + abs(sp.offset)) * (1.0 + 1e-6)
     for n in range(pos_b.shape[0]):
+        n_cand = -1
+        if g.on:
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
+                               grid[1], grid[2], found, grid[5])
         for k in range(sp.mount_yaw.shape[0]):
-            ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit)
+            ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit, found, n_cand)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -174,11 +193,12 @@ def fire_slots_env(seed, env_id, step, sp, slot, draw):
 
 
 @njit(cache=True, inline="always")
-def crosstalk_path(n, k, sonar_buf, slot, sp):
+def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand):
     """Shortest emitter→receiver path (m) heard by sonar (n, k) under geometric cross-talk; inf if none.
 
     Emitters are the sonars of other copters firing in copter n's slot (``slot`` (N,)), inside the
     receiver's cone and pointing at it, within 2·max_range. sonar_buf (N, S, 4) from :func:`sonar_poses_env`.
+    The copters considered: all when ``n_cand`` < 0, else cand[:n_cand] (the result is a minimum: any order).
     """
     rx = sonar_buf[n, k, 0]
     ry = sonar_buf[n, k, 1]
@@ -204,7 +224,9 @@ def crosstalk_path(n, k, sonar_buf, slot, sp):
     best2 = np.inf
     ch2 = ch * ch * (1.0 - 1e-12)
     square_cone = ch > 1e-50
-    for m in range(sonar_buf.shape[0]):
+    M = sonar_buf.shape[0] if n_cand < 0 else n_cand
+    for c in range(M):
+        m = c if n_cand < 0 else cand[c]
         if m == n or slot[m] != slot[n]:
             continue
         for j in range(sonar_buf.shape[1]):
@@ -285,21 +307,29 @@ def measured_reading(d, echo, path, key, k, sp):
 
 
 @njit(cache=True, inline="always")
-def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step,
-                   sonar_buf, dist, kind, hit, slot, out):
+def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, work, out, g, grid):
     """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
 
-    Same geometry arguments and work buffers as :func:`ideal_env` (their ideal values are left in
-    dist/kind/hit), plus slot (N,) int64 work buffer; seed, env_id, step key the random numbers.
+    Same geometry arguments and grid as :func:`ideal_env`; work = (sonar_buf, dist, kind, hit, slot): its work
+    buffers (the ideal values are left in dist/kind/hit) and slot (N,) int64; seed, env_id, step key the random
+    numbers. With the grid on, the cross-talk emitters are searched among the copters within
+    2·(max_range + |offset|) of the receiver's copter (all that can be within 2·max_range of its sonar).
     """
-    ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit)
+    sonar_buf, dist, kind, hit, slot = work
+    ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit, g, grid)
     geometric = sp.crosstalk & CROSSTALK_GEOMETRIC
     if geometric:
         fire_slots_env(seed, env_id, step, sp, slot, 0)
+    found = grid[4]
+    reach = 2.0 * (sp.max_range + abs(sp.offset)) * (1.0 + 1e-6)
     for n in range(pos_b.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
+        n_cand = -1
+        if geometric and g.on:  # the grid ideal_env built
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
+                               grid[1], grid[2], found, grid[5])
         for k in range(sp.mount_yaw.shape[0]):
-            path = crosstalk_path(n, k, sonar_buf, slot, sp) if geometric else np.inf
+            path = crosstalk_path(n, k, sonar_buf, slot, sp, found, n_cand) if geometric else np.inf
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sp)
 
 

@@ -95,6 +95,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import ConfigError
+from ..kernels.cellgrid import NO_GRID
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
 from .sonar_kernels import (crosstalk_path, displaced_plates_env, down_env, echo_reading, fire_slot, fire_slots_env,
                             ideal_env, measured_reading, shifted_plates_env, sonar_hit, sonar_poses_env,
@@ -131,19 +132,23 @@ _down_env_fn = njit(cache=True)(down_env.py_func)
 @njit(cache=True, parallel=True)
 def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hit, out):
     """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] (so T×B trajectories flatten);
-    g: :class:`WallGeometry`. Ideal values into dist/kind/hit; with ``measure`` also the readings into out."""
+    g: :class:`WallGeometry`. Ideal values into dist/kind/hit; with ``measure`` also the readings into out.
+    Every copter is tested against every ray (no cell grid: the reference the engine's grid is compared with)."""
     B, N, _ = pos.shape
     S = g.plate_a.shape[0]
     for b in prange(B):
         pa = np.empty((S, 2))
         pb = np.empty((S, 2))
         sonar_buf = np.empty((N, sp.mount_yaw.shape[0], 4))
+        off = NO_GRID
+        no = (np.empty(1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
+              np.empty(0, dtype=np.int64), np.empty(0))
         displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
         if measure:
-            _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b], sonar_buf,
-                               dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64), out[b])
+            _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b],
+                               (sonar_buf, dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64)), out[b], off, no)
         else:
-            _ideal_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, sonar_buf, dist[b], kind[b], hit[b])
+            _ideal_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, sonar_buf, dist[b], kind[b], hit[b], off, no)
 
 
 @njit(cache=True, parallel=True)

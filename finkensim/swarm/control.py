@@ -61,8 +61,8 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
     env = run.env_ids[b]
     if run.do_sonar:
         _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-        _sonar_fn(w.pos[b], w.yaw[b], pa, pb, geo.width, geo.length, sp, seed, env, k, sonar_buf, dist, hit_kind,
-                  hit, slot, son[b])
+        _sonar_fn(w.pos[b], w.yaw[b], pa, pb, geo.width, geo.length, sp, seed, env, k,
+                  (sonar_buf, dist, hit_kind, hit, slot), son[b], grid, env_grid(grid, b))
     if run.do_ranging:
         _ranging_fn(w.pos[b], beacons, seed, env, k, rp, rng[b], grid, env_grid(grid, b))
     if run.do_imu:

@@ -153,8 +153,8 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         # 1. sense
         if run.do_sonar:
             _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-            _sonar_fn(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, sonar_buf, dist, hit_kind,
-                      hit, slot, son)
+            _sonar_fn(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
+                      son, grid, grid_b)
         if run.do_down:
             _down_fn(alt, sp, seed, env, k, down)
         if run.do_ranging:
