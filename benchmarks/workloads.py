@@ -225,17 +225,19 @@ class CompareWorkload:
 # (b) full FINken workload
 
 
-def finken_config(n: int, b: int):
-    """The full FINken configuration for N copters and B environments (defaults otherwise: 16 plates
-    per wall, bending, Rayleigh sonar with geometric cross-talk, 2.5 m mixture ranging, IMU on,
-    attraction–repulsion behaviour). The start separation shrinks with N so crowded boxes place fast."""
+def finken_config(n: int, b: int, width: float = 3.0, length: float = 4.0, simulation: dict | None = None):
+    """The full FINken configuration for N copters and B environments in a width × length m arena (defaults
+    otherwise: 16 plates per wall, bending, Rayleigh sonar with geometric cross-talk, 2.5 m mixture ranging, IMU
+    on, attraction–repulsion behaviour); ``simulation``: more [simulation] keys. The start separation shrinks with N
+    so crowded boxes place fast."""
     from finkensim.config import load_config
 
-    area = 3.0 * 4.0
+    area = width * length
     sep = min(0.5, 0.6 * math.sqrt(area / max(n, 1)))
     return load_config({
+        "arena": {"width": float(width), "length": float(length)},
         "copters": {"n": int(n), "min_separation": float(sep)},
-        "simulation": {"n_envs": int(b), "seed": 1},
+        "simulation": {"n_envs": int(b), "seed": 1, **(simulation or {})},
         "walls": {"n_segments": 16, "bending": True},
         "behaviour": {"kind": "attraction_repulsion"},
         "sonar": {"enabled": True, "error": "rayleigh", "crosstalk": "geometric"},

@@ -1,0 +1,68 @@
+"""The full FINken workload in the engine itself, cost per copter-step against N at fixed density.
+
+``python -m benchmarks.engine_scaling [--quick] [--sizes N ...]``. One environment (one thread: ``prange`` over a
+single environment), the configuration of ``benchmarks.workloads.finken_config`` (bending walls, Rayleigh sonar with
+geometric cross-talk, 2.5 m mixture ranging, IMU, attraction–repulsion with its wall check) in an arena that grows
+with N at the lab's density (10 copters in 3 m × 4 m, aspect 3 : 4; the walls keep 16 plates each, so plates get
+wider). ``SwarmSim.rollout`` without recording, thread CPU time (``time.thread_time``) of the steady state (a first
+rollout compiles and settles the swarm), best of 3. Prints µs per copter-step with the cell grid (on from
+``simulation.grid_min_copters``) and, up to ``--brute-max`` copters, with the brute force, and the spread of the grid
+column (the target of issue #15: flat within ±30 % from N = 10 to 10 000).
+
+The grid serves contacts, ranging and the sonar (rays and cross-talk); the wall check still compares each sonar
+reading with every ranging column and the ranging matrix is N × N, so the grid column still grows with N.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+from benchmarks.workloads import finken_config
+
+AREA_PER_COPTER = 12.0 / 10  # m², the SwarmLab with 10 copters
+
+
+def config(n: int, grid: bool):
+    length = math.sqrt(n * AREA_PER_COPTER * 4 / 3)
+    return finken_config(n, 1, 0.75 * length, length, {"grid_min_copters": 64 if grid else 2**62})
+
+
+def us_per_copter_step(n: int, grid: bool, steps: int) -> float:
+    from finkensim.swarm import SwarmSim
+
+    sim = SwarmSim(config(n, grid))
+    state, _ = sim.rollout(sim.init(n_envs=1, seed=1), 20, record=False)  # compile, leave the start positions
+    best = math.inf
+    for _ in range(3):
+        t0 = time.thread_time()
+        sim.rollout(state, steps, record=False)
+        best = min(best, time.thread_time() - t0)
+    return best / (steps * n) * 1e6
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="N up to 256, fewer steps")
+    ap.add_argument("--sizes", type=int, nargs="+", help="swarm sizes (default 10 … 4096)")
+    ap.add_argument("--brute-max", type=int, default=1024, help="largest N timed with the brute force too")
+    args = ap.parse_args(argv)
+    sizes = args.sizes or ([10, 64, 256] if args.quick else [10, 32, 64, 128, 256, 512, 1024, 2048, 4096])
+    print(f"{'N':>6} {'grid µs/copter-step':>20} {'brute µs/copter-step':>21} {'brute/grid':>11}")
+    costs = []
+    for n in sizes:
+        steps = max(5, (2_000 if args.quick else 20_000) // n)
+        g = us_per_copter_step(n, True, steps)
+        costs.append(g)
+        if n <= args.brute_max:
+            b = us_per_copter_step(n, False, steps)
+            print(f"{n:>6} {g:>20.2f} {b:>21.2f} {b / g:>11.2f}", flush=True)
+        else:
+            print(f"{n:>6} {g:>20.2f} {'':>21} {'':>11}", flush=True)
+    mid = math.sqrt(max(costs) * min(costs))
+    print(f"grid column: {min(costs):.2f} … {max(costs):.2f} µs per copter-step, ±{100 * (max(costs) / mid - 1):.0f} % "
+          f"around the geometric mean")
+
+
+if __name__ == "__main__":
+    main()
