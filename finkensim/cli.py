@@ -1,6 +1,6 @@
 """The ``finkensim`` command line.
 
-    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal]
+    finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal] [--no-progress]
     finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
                     [--scheduler ADDRESS] [--resume] [--overwrite] [--no-progress]
     finkensim gap REAL.npz [REAL2.npz ...] [--config sim.toml] [--out DIR] [--heldout NAME ...]
@@ -69,6 +69,7 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=None, metavar="N",
                    help="random seed (default: simulation.seed of the scenario)")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--ideal", action=argparse.BooleanOptionalAction, default=True,
                    help="store the error-free sensor values in the log (extras *_ideal, ultrasonic_hit_type); "
                         "on by default, --no-ideal leaves them out")
@@ -89,7 +90,8 @@ def cmd_run(args) -> int:
     t0 = time.perf_counter()
     try:
         with compile_timer() as jit:
-            log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal)
+            log, traj, world = simulate_flight(cfg, duration=args.duration, seed=args.seed, ideal=args.ideal,
+                                               progress=not args.no_progress)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     out = _output_dir(prog, args.out)

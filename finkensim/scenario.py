@@ -117,7 +117,8 @@ def _n_steps(duration: float, dt: float) -> int:
 
 
 def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, *, duration: float | None = None,
-                    seed: int | None = None, ideal: bool = False) -> tuple[FlightLog, Trajectory, World]:
+                    seed: int | None = None, ideal: bool = False,
+                    progress: bool = False) -> tuple[FlightLog, Trajectory, World]:
     """Simulate one flight of the configured behaviour and build its flight log.
 
     Args:
@@ -125,6 +126,7 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         duration: flight length in s (default ``simulation.duration``).
         seed: random seed (default ``simulation.seed``).
         ideal: also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
+        progress: a progress bar on stderr (the flight runs in about 100 parts; the same results).
 
     One environment (B = 1, environment index 0) is placed at random and flown for
     round(duration / dt) steps by ``behaviour.kind`` in the compiled loop of
@@ -163,7 +165,8 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     swarm = SwarmSim(cfg)
     state0 = swarm.init(n_envs=1, seed=sim.seed)
     # n_steps + 1 steps record the states at t = 0 .. duration inclusive
-    _, rec = swarm.rollout(state0, n_steps + 1, record=flight_record_names(swarm, ideal))
+    _, rec = swarm.rollout(state0, n_steps + 1, record=flight_record_names(swarm, ideal),
+                           progress="flight" if progress else False)
     world = swarm.world
     traj = Trajectory(t=rec.t, pose=rec.pose, vel=rec.vel, acc=rec.acc, yaw_rate=rec.yaw_rate, theta=rec.theta)
 

@@ -289,3 +289,22 @@ def test_disabled_sensors_are_skipped_and_record_false_keeps_counters():
     zero, rec0 = sim.rollout(state, 0)
     _assert_same(zero, state, "zero steps")
     assert rec0.pose.shape == (0, 2, 3, 3)
+
+
+def test_a_rollout_in_parts_with_a_progress_bar_equals_one_rollout(capsys):
+    """progress=True runs the flight in ~100 parts (the CLI's progress bar): every record, counter and the final state
+    are those of one compiled call (the behaviour memory, IMU bias and plates carry over in the state)."""
+    sim = SwarmSim(Config().replace({"behaviour.kind": "attraction_repulsion", "behaviour.wall_check": "sequence",
+                                     "copters.n": 8}))
+    state = sim.init(n_envs=2, seed=4)
+    one_state, one = sim.rollout(state, 230)
+    parts_state, parts = sim.rollout(state, 230, progress="test flight")
+    assert "test flight" in capsys.readouterr().err
+    for name in ("pose", "sonar", "sonar_ideal", "ranging", "imu_acc", "wall", "theta", "cmd_vel"):
+        np.testing.assert_array_equal(getattr(parts, name), getattr(one, name), err_msg=name)
+    np.testing.assert_array_equal(parts.t, one.t)
+    for k in one.counters:
+        np.testing.assert_array_equal(parts.counters[k], one.counters[k])
+    np.testing.assert_array_equal(parts_state.world.pos, one_state.world.pos)
+    np.testing.assert_array_equal(parts_state.imu_bias, one_state.imu_bias)
+    assert parts_state.step == one_state.step

@@ -5,7 +5,7 @@ Shapes: B environments, N copters, S plates, M beacons, T recorded steps; 4 hori
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -130,6 +130,16 @@ class SwarmRecord:
     wall: np.ndarray | None = None
     cmd_vel: np.ndarray | None = None
     cmd_yaw_rate: np.ndarray | None = None
+
+
+def concat_records(records: list["SwarmRecord"]) -> "SwarmRecord":
+    """One :class:`SwarmRecord` of consecutive rollouts (the arrays joined along time, the counters summed)."""
+    first = records[0]
+    arrays = {f.name: (None if getattr(first, f.name) is None else
+                       np.concatenate([getattr(r, f.name) for r in records], axis=0))
+              for f in fields(SwarmRecord) if f.name not in ("t", "counters")}
+    counters = {k: sum(r.counters[k] for r in records) for k in first.counters}
+    return SwarmRecord(t=np.concatenate([r.t for r in records]), counters=counters, **arrays)
 
 
 class MemoryArrays(NamedTuple):

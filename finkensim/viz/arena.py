@@ -64,11 +64,16 @@ def _heading_segments(pos: np.ndarray, yaw: np.ndarray, radius: float) -> np.nda
     return np.stack([pos + 0.45 * u, pos + 1.7 * u], axis=1)
 
 
+#: above this many copters the arena is drawn without labels and with thin lines
+CROWD = 50
+
+
 def draw_arena(ax, arena: Arena, pos, yaw, theta, trails, radius, exaggeration, norm, labels) -> ArenaArtists:
     """Draw the arena into ``ax``: rest line, plates (coloured by θ with ``norm``), copters.
 
     pos (N, 2) m, yaw (N,) rad, theta (S,) rad, trails None or (T', N, 2+) m, radius m,
-    exaggeration: factor on the drawn wall displacement, labels: print copter indices.
+    exaggeration: factor on the drawn wall displacement, labels: print copter indices (not above
+    :data:`CROWD` copters, where lines are drawn thin too).
     """
     from matplotlib.collections import LineCollection
     from matplotlib.patches import Circle, Rectangle
@@ -82,20 +87,22 @@ def draw_arena(ax, arena: Arena, pos, yaw, theta, trails, radius, exaggeration, 
 
     n = pos.shape[0]
     colours = _copter_colours(n)
+    crowd = n > CROWD  # many copters: thin lines, or the picture is all ink
+    lw_body, lw_heading, lw_trail = (0.2, 0.3, 0.3) if crowd else (1.5, 1.6, 1.0)
     trail_lines = []
     if trails is not None:
         for i in range(n):
-            (line,) = ax.plot(trails[:, i, 0], trails[:, i, 1], color=colours[i], lw=1.0, alpha=0.55, zorder=2)
+            (line,) = ax.plot(trails[:, i, 0], trails[:, i, 1], color=colours[i], lw=lw_trail, alpha=0.55, zorder=2)
             trail_lines.append(line)
     bodies = []
     for i in range(n):
-        c = Circle(pos[i], radius, facecolor=(*colours[i][:3], 0.35), edgecolor=colours[i], lw=1.5, zorder=4)
+        c = Circle(pos[i], radius, facecolor=(*colours[i][:3], 0.35), edgecolor=colours[i], lw=lw_body, zorder=4)
         ax.add_patch(c)
         bodies.append(c)
-    headings = LineCollection(_heading_segments(pos, yaw, radius), colors="k", linewidths=1.6, zorder=5)
+    headings = LineCollection(_heading_segments(pos, yaw, radius), colors="k", linewidths=lw_heading, zorder=5)
     ax.add_collection(headings)
     texts = []
-    if labels:
+    if labels and not crowd:
         for i in range(n):
             texts.append(ax.text(pos[i, 0], pos[i, 1], str(i), ha="center", va="center", fontsize=7,
                                  color="0.1", zorder=6))
@@ -151,7 +158,7 @@ def plot_arena(arena, pos, yaw, theta, ax=None, trails=None, *, radius: float | 
         t: time in s for the title.
         vmax_deg: top of the plate-angle colour scale (default 1.1 × max amplitude).
         colorbar: add a colour bar of plate angles in degrees.
-        labels: print each copter's index on its body.
+        labels: print each copter's index on its body (up to :data:`CROWD` copters).
 
     Each plate is drawn at flight height where the sensors see it: its own width, moved into the
     arena by ``exaggeration · lever · sin θ`` and coloured by θ. The dashed rectangle is the rest line.
