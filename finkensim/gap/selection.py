@@ -117,29 +117,31 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             evaluated.append(cur_scores)
             steps.append(("joint refit", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in added}))
 
+    def significantly_better(chain) -> bool:
+        """A joint fit's chain beats the current selection: lower held-out score, significant improvement."""
+        if chain is None or not chain[-1].score_heldout < cur_score:
+            return False
+        imp, _, imp_p = improvement(cur_scores, chain[-1].rows_score)
+        return bool(np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0)
+
+    def adopt(chain, label):
+        """(added, current, cur_scores, cur_gaps, cur_score) of a joint fit's chain; its waterfall step."""
+        last = chain[-1]
+        steps.append((label, None, last.rows_score, last.rows_gap, {r.name: _clean(r.values) for r in chain}))
+        diag.say(f"  joint fit of {chain[0].name} and {chain[1].name}: held-out score {last.score_heldout:.4f}")
+        return chain, last.params, last.rows_score, last.rows_gap, last.score_heldout
+
     if len(added) == 2:
         swap = _swap_second(diag, added, first, evaluated)
-        if swap is not None and swap[-1].score_heldout < cur_score:
-            imp, _, imp_p = improvement(cur_scores, swap[-1].rows_score)
-            if np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0:
-                added = swap
-                current, cur_scores, cur_gaps = swap[-1].params, swap[-1].rows_score, swap[-1].rows_gap
-                cur_score = swap[-1].score_heldout
-                steps.append(("joint swap", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in swap}))
-                diag.say(f"  joint fit of {swap[0].name} and {swap[1].name}: held-out score {cur_score:.4f}")
+        if significantly_better(swap):
+            added, current, cur_scores, cur_gaps, cur_score = adopt(swap, "joint swap")
 
     shrink_sensors = gap_sensors or list(base_scores)
     if (significant and added and ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated).shrink(
             cur_scores, cur_gaps) < cfg.unexplained_shrink):
         pair = _pair_second_chance(diag, added[0], first, evaluated)
-        if pair is not None and pair[-1].score_heldout < cur_score:
-            imp, _, imp_p = improvement(cur_scores, pair[-1].rows_score)
-            if np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0:
-                added = pair
-                current, cur_scores, cur_gaps = pair[-1].params, pair[-1].rows_score, pair[-1].rows_gap
-                cur_score = pair[-1].score_heldout
-                steps.append(("joint pair fit", None, cur_scores, cur_gaps, {r.name: _clean(r.values) for r in pair}))
-                diag.say(f"  joint fit of {pair[0].name} and {pair[1].name}: held-out score {cur_score:.4f}")
+        if significantly_better(pair):
+            added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint pair fit")
 
     # how much each model explains: calibration and proper score, against what the catalogue built
     meter = ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated)

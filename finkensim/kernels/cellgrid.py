@@ -264,6 +264,15 @@ def row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start):
 
 
 @njit(cache=True, inline="always")
+def query_rows(qx, qy, r, y0, inv_cell, ny):
+    """The grid rows a query of radius r around (qx, qy) scans: (pad, r + pad, cell side, first row, last row);
+    pad (m) widens the box against rounding (see ``BOX_PAD``)."""
+    pad = BOX_PAD * (r + abs(qx) + abs(qy))
+    rb = r + pad
+    return pad, rb, 1.0 / inv_cell, cell_coord(qy - rb, y0, inv_cell, ny), cell_coord(qy + rb, y0, inv_cell, ny)
+
+
+@njit(cache=True, inline="always")
 def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos, out_idx, out_d2):
     """Copters within r (squared distance ≤ r²) of point (qx, qy), except copter ``skip`` (−1: none).
 
@@ -272,11 +281,7 @@ def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
     many. Needs the buffers of :func:`build_env`. Querying the copters in sorted-slot order
     (``order[k]`` for k = 0 … N−1) keeps consecutive queries in the same cells (cache friendly).
     """
-    pad = BOX_PAD * (r + abs(qx) + abs(qy))
-    rb = r + pad
-    cell = 1.0 / inv_cell
-    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
-    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
     r2 = r * r
     n = 0
     for cy in range(cy0, cy1 + 1):
@@ -297,11 +302,7 @@ def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
 @njit(cache=True, inline="always")
 def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
     """Number of copters within r of (qx, qy), except ``skip`` (as :func:`query_env`, no output)."""
-    pad = BOX_PAD * (r + abs(qx) + abs(qy))
-    rb = r + pad
-    cell = 1.0 / inv_cell
-    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
-    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
     r2 = r * r
     n = 0
     for cy in range(cy0, cy1 + 1):
@@ -317,11 +318,7 @@ def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
 def any_within_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
     """Whether some copter other than ``skip`` is strictly closer than r to (qx, qy): squared distance
     (q − p)·(q − p) < r², the brute force's test (the sign of a difference does not change its square)."""
-    pad = BOX_PAD * (r + abs(qx) + abs(qy))
-    rb = r + pad
-    cell = 1.0 / inv_cell
-    cy0 = cell_coord(qy - rb, y0, inv_cell, ny)
-    cy1 = cell_coord(qy + rb, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
     r2 = r * r
     for cy in range(cy0, cy1 + 1):
         k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
@@ -347,12 +344,7 @@ def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, x0, y0, inv_cell, nx,
     for k in range(R):
         out_t[k] = np.inf
         out_j[k] = -1
-    lim = max_range + radius
-    pad = BOX_PAD * (lim + abs(ox) + abs(oy))
-    lim += pad
-    cell = 1.0 / inv_cell
-    cy0 = cell_coord(oy - lim, y0, inv_cell, ny)
-    cy1 = cell_coord(oy + lim, y0, inv_cell, ny)
+    pad, lim, cell, cy0, cy1 = query_rows(ox, oy, max_range + radius, y0, inv_cell, ny)
     lim2 = lim * lim
     r2 = radius * radius
     for cy in range(cy0, cy1 + 1):
