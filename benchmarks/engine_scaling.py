@@ -2,15 +2,15 @@
 
 ``python -m benchmarks.engine_scaling [--quick] [--sizes N ...]``. One environment (one thread: ``prange`` over a
 single environment), the configuration of ``benchmarks.workloads.finken_config`` (bending walls, Rayleigh sonar with
-geometric cross-talk, 2.5 m mixture ranging, IMU, attraction–repulsion with its wall check) in an arena that grows
+geometric cross-talk, 2.5 m mixture ranging, IMU, attraction–repulsion without a wall check) in an arena that grows
 with N at the lab's density (10 copters in 3 m × 4 m, aspect 3 : 4; the walls keep 16 plates each, so plates get
 wider). ``SwarmSim.rollout`` without recording, thread CPU time (``time.thread_time``) of the steady state (a first
 rollout compiles and settles the swarm), best of 3. Prints µs per copter-step with the cell grid (on from
 ``simulation.grid_min_copters``) and, up to ``--brute-max`` copters, with the brute force, and the spread of the grid
 column (the target of issue #15: flat within ±30 % from N = 10 to 10 000).
 
-The grid serves contacts, ranging and the sonar (rays and cross-talk); the wall check still compares each sonar
-reading with every ranging column and the ranging matrix is N × N, so the grid column still grows with N.
+The grid serves contacts, ranging, the sonar (rays and cross-talk) and the wall check; the ranging matrix is still
+N × N (written in full each step), so the grid column still grows with N.
 """
 from __future__ import annotations
 

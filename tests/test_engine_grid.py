@@ -129,7 +129,8 @@ GEOMETRIC = {"sonar.crosstalk": "geometric", "sonar.beam": "cone", "sonar.beam_r
 
 
 @pytest.mark.parametrize("behaviour,sonar", [("random_walk", {}), ("attraction_repulsion", {}),
-                                             ("attraction_repulsion", GEOMETRIC)])
+                                             ("attraction_repulsion", {**GEOMETRIC, "behaviour.wall_check": "sequence"}),
+                                             ("attraction_repulsion", {"behaviour.wall_check": "per_reading"})])
 def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behaviour, sonar):
     """40 copters in a 4.5 m × 6 m arena (contacts, copters beyond the sonar and ranging ranges), every sensor on,
     also with geometric cross-talk and a 5-ray cone from sonars off the centre: records and counters match
@@ -141,13 +142,17 @@ def test_a_closed_loop_flight_is_bit_identical_with_and_without_the_grid(behavio
     runs = [sim.rollout(sim.init(n_envs=3, seed=11), 120) for sim in (grid, brute)]
     (s_g, r_g), (s_b, r_b) = runs
     assert r_b.counters["collisions"].sum() > 0  # the test exercises contacts
-    for name in ("collisions", "wall_contacts"):
+    for name in ("collisions", "wall_contacts", "wall_onsets", "wall_readings"):
         np.testing.assert_array_equal(r_g.counters[name], r_b.counters[name])
     np.testing.assert_array_equal(r_g.pose, r_b.pose)
     np.testing.assert_array_equal(r_g.sonar, r_b.sonar)
     np.testing.assert_array_equal(r_g.ranging, r_b.ranging)
     np.testing.assert_array_equal(r_g.sonar_ideal, r_b.sonar_ideal)
     np.testing.assert_array_equal(r_g.sonar_hit, r_b.sonar_hit)
+    if r_b.wall is not None:
+        np.testing.assert_array_equal(r_g.wall, r_b.wall)
+    if "wall_check" in str(sonar):
+        assert r_b.counters["wall_readings"].sum() > 0  # the check judged readings
     assert (r_b.sonar_hit == 2).any()  # copter echoes happen
     np.testing.assert_array_equal(s_g.world.in_collision, s_b.world.in_collision)
 

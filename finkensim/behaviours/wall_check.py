@@ -58,6 +58,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config, ConfigError
+from ..kernels.cellgrid import NO_GRID, query_env
+from ..sensors.ranging_kernels import ranging_reach
 
 __all__ = ["WALL_CHECK_NONE", "WALL_CHECK_PER_READING", "WALL_CHECK_SEQUENCE", "WALL_CHECK_CODES",
            "WallCheckParams", "BehaviourState", "reading_fails", "per_reading_env", "dead_reckon_env",
@@ -137,29 +139,58 @@ class BehaviourState:
 
 
 @njit(cache=True, inline="always")
-def reading_fails(r, rng_row, self_n, wp):
-    """True if sonar reading r (m) is an echo that matches no ranging reading in rng_row (N + M,) m."""
+def _matches(e, rho, wp):
+    """Whether a ranging reading rho (m) matches the centre-distance estimate e (m) of a sonar reading."""
+    if rho >= wp.ranging_max_range:
+        return e >= wp.ranging_max_range - wp.epsilon
+    return abs(e - rho) <= wp.epsilon
+
+
+@njit(cache=True, inline="always")
+def reading_fails(r, rng_row, self_n, wp, cand, n_cand, n_copters):
+    """True if sonar reading r (m) is an echo that matches no ranging reading in rng_row (N + M,) m.
+
+    n_cand < 0: every column is tested. Else the copter columns outside cand[:n_cand] are known to read exactly
+    ``ranging.max_range`` (the ranging drew only the copters the grid found in range,
+    :func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`): they match alike, so one test stands for all of
+    them; the candidates and the n_copters… beacon columns are tested one by one. The same answer either way.
+    """
     if r >= wp.sonar_max_range:
         return False
     e = r + wp.rim
-    for j in range(rng_row.shape[0]):
-        if j == self_n:
-            continue
-        rho = rng_row[j]
-        if rho >= wp.ranging_max_range:
-            if e >= wp.ranging_max_range - wp.epsilon:
+    if n_cand < 0:
+        for j in range(rng_row.shape[0]):
+            if j != self_n and _matches(e, rng_row[j], wp):
                 return False
-        elif abs(e - rho) <= wp.epsilon:
+        return True
+    if n_copters - 1 - n_cand > 0 and _matches(e, wp.ranging_max_range, wp):
+        return False
+    for c in range(n_cand):
+        if _matches(e, rng_row[cand[c]], wp):
+            return False
+    for j in range(n_copters, rng_row.shape[0]):
+        if _matches(e, rng_row[j], wp):
             return False
     return True
 
 
 @njit(cache=True, inline="always")
-def per_reading_env(sonar_b, rng_b, wp, fail_out):
-    """Per-reading check of one environment: sonar_b (N, 4) m, rng_b (N, N + M) m → fail_out (N, 4) bool."""
-    for n in range(sonar_b.shape[0]):
+def per_reading_env(sonar_b, rng_b, wp, fail_out, near):
+    """Per-reading check of one environment: sonar_b (N, 4) m, rng_b (N, N + M) m → fail_out (N, 4) bool.
+
+    near = (pos_b (N, 2) m, g, grid, on): with ``on`` (the ranging ran on the engine's cell grid ``g`` this step,
+    :func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`), each copter's columns in range are found again
+    on the grid (``grid``: this environment's buffers, built for the same positions) instead of scanning all N + M.
+    """
+    pos_b, g, grid, on = near
+    N = sonar_b.shape[0]
+    for n in range(N):
+        n_cand = -1
+        if on:
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], ranging_reach(wp.ranging_max_range), n, g.x0, g.y0,
+                               g.inv_cell, g.nx, g.ny, grid[0], grid[1], grid[2], grid[4], grid[5])
         for k in range(sonar_b.shape[1]):
-            fail_out[n, k] = reading_fails(sonar_b[n, k], rng_b[n], n, wp)
+            fail_out[n, k] = reading_fails(sonar_b[n, k], rng_b[n], n, wp, grid[4], n_cand, N)
 
 
 @njit(cache=True, inline="always")
@@ -209,16 +240,17 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
 
 
 @njit(cache=True, inline="always")
-def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr_yaw, onsets, wall_readings):
+def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr_yaw, onsets, wall_readings, near):
     """The configured check (``wp.mode``) for one environment; updates the memory and the wall flags
-    wall (N, 4) in place. fail_buf (N, 4) bool is a work buffer (left holding the per-reading result)."""
+    wall (N, 4) in place. fail_buf (N, 4) bool is a work buffer (left holding the per-reading result); near: as
+    :func:`per_reading_env`."""
     N, K = sonar_b.shape
     if wp.mode == WALL_CHECK_NONE:
         for n in range(N):
             for k in range(K):
                 wall[n, k] = False
         return
-    per_reading_env(sonar_b, rng_b, wp, fail_buf)
+    per_reading_env(sonar_b, rng_b, wp, fail_buf, near)
     if wp.mode == WALL_CHECK_PER_READING:
         for n in range(N):
             for k in range(K):
@@ -237,10 +269,17 @@ def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr
 # batched kernels and wrappers
 
 
+@njit(cache=True, inline="always")
+def _no_grid(n):
+    """``near`` of :func:`per_reading_env` without a grid (every column is scanned)."""
+    return (np.empty((n, 2)), NO_GRID, (np.empty(1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty((0, 2)),
+                                        np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0)), False)
+
+
 @njit(cache=True, parallel=True)
 def _per_reading_batch(sonar, rng, wp, out):
     for b in prange(sonar.shape[0]):
-        per_reading_env(sonar[b], rng[b], wp, out[b])
+        per_reading_env(sonar[b], rng[b], wp, out[b], _no_grid(sonar.shape[1]))
 
 
 @njit(cache=True, parallel=True)
@@ -254,7 +293,7 @@ def _wall_check_batch(sonar, rng, wp, count, wall, anchor, dr_pos, dr_yaw, onset
     for b in prange(sonar.shape[0]):
         fail_buf = np.empty(sonar.shape[1:], dtype=np.bool_)
         wall_check_env(sonar[b], rng[b], wp, fail_buf, count[b], wall[b], anchor[b], dr_pos[b], dr_yaw[b],
-                       onsets[b], wall_readings[b])
+                       onsets[b], wall_readings[b], _no_grid(sonar.shape[1]))
 
 
 def _check_params(wp):

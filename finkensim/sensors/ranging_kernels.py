@@ -43,7 +43,7 @@ from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
     "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
-    "ranging_reading",
+    "ranging_reach", "ranging_reading",
     "row_key", "sample_readings", "seed_reading",
 ]
 
@@ -199,6 +199,13 @@ def ranging_env(pos_b, beacons, seed, env, step, p, out):
 
 
 @njit(cache=True, inline="always")
+def ranging_reach(max_range):
+    """The radius (m) of the grid query that finds every copter the ranging draws for: max_range·(1 + 1e-9) (the
+    exact rule then applies to sqrt(dx² + dy²)), inf for a huge range."""
+    return max_range * (1.0 + 1e-9) if max_range < 1e300 else np.inf
+
+
+@njit(cache=True, inline="always")
 def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
     """:func:`ranging_env` with the copter pairs found on a cell grid when ``g.on``: the same readings, bit for bit.
 
@@ -215,7 +222,7 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
     m = beacons.shape[0]
     cell_start, order, spos, cell_of, found, found_d2 = grid
     build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
-    reach = p.max_range * (1.0 + 1e-9) if p.max_range < 1e300 else np.inf
+    reach = ranging_reach(p.max_range)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
         xi = pos_b[i, 0]

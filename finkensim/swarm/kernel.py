@@ -149,6 +149,8 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
     dist_buf = np.empty(geo.seg_a.shape[0])
     gap_buf = np.empty(N)
     grid_b = env_grid(grid, b)
+    # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
+    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
     for t in range(run.n_steps):
         k = run.step0 + t
         _record_state(t, b, w, rec)
@@ -167,7 +169,7 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         # 2. behave
         if run.do_sonar:
             _wall_check_fn(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
-                           mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b])
+                           mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b], (pos, grid, grid_b, near_on))
         if run.kind == KIND_ATTRACTION:
             _attraction_fn(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
             _body_to_world_fn(yaw, cmd_body, cmd_v)
