@@ -23,15 +23,16 @@ from benchmarks.workloads import finken_config
 AREA_PER_COPTER = 12.0 / 10  # m², the SwarmLab with 10 copters
 
 
-def config(n: int, grid: bool):
+def config(n: int, grid: bool, wall_check: str = "none"):
     length = math.sqrt(n * AREA_PER_COPTER * 4 / 3)
-    return finken_config(n, 1, 0.75 * length, length, {"grid_min_copters": 64 if grid else 2**62})
+    cfg = finken_config(n, 1, 0.75 * length, length, {"grid_min_copters": 64 if grid else 2**62})
+    return cfg.replace({"behaviour.wall_check": wall_check})
 
 
-def us_per_copter_step(n: int, grid: bool, steps: int) -> float:
+def us_per_copter_step(n: int, grid: bool, steps: int, wall_check: str = "none") -> float:
     from finkensim.swarm import SwarmSim
 
-    sim = SwarmSim(config(n, grid))
+    sim = SwarmSim(config(n, grid, wall_check))
     state, _ = sim.rollout(sim.init(n_envs=1, seed=1), 20, record=False)  # compile, leave the start positions
     best = math.inf
     for _ in range(3):
@@ -46,16 +47,18 @@ def main(argv=None) -> None:
     ap.add_argument("--quick", action="store_true", help="N up to 256, fewer steps")
     ap.add_argument("--sizes", type=int, nargs="+", help="swarm sizes (default 10 … 4096)")
     ap.add_argument("--brute-max", type=int, default=1024, help="largest N timed with the brute force too")
+    ap.add_argument("--wall-check", default="none", choices=("none", "per_reading", "sequence"),
+                    help="the behaviour's wall check (default none, as in make bench's full workload)")
     args = ap.parse_args(argv)
     sizes = args.sizes or ([10, 64, 256] if args.quick else [10, 32, 64, 128, 256, 512, 1024, 2048, 4096])
     print(f"{'N':>6} {'grid µs/copter-step':>20} {'brute µs/copter-step':>21} {'brute/grid':>11}")
     costs = []
     for n in sizes:
         steps = max(5, (2_000 if args.quick else 20_000) // n)
-        g = us_per_copter_step(n, True, steps)
+        g = us_per_copter_step(n, True, steps, args.wall_check)
         costs.append(g)
         if n <= args.brute_max:
-            b = us_per_copter_step(n, False, steps)
+            b = us_per_copter_step(n, False, steps, args.wall_check)
             print(f"{n:>6} {g:>20.2f} {b:>21.2f} {b / g:>11.2f}", flush=True)
         else:
             print(f"{n:>6} {g:>20.2f} {'':>21} {'':>11}", flush=True)
