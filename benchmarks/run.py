@@ -12,7 +12,9 @@ is measured in this run (ratios are only meaningful within one run: the machine 
     missing)" plus the stand-in (``World.rollout`` + batched sensors);
 for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments;
 (c) **RL environments** (``benchmarks.envs_bench``): env-steps/s of the Gymnasium vector env and the
-    PettingZoo env at N = 10, B ∈ {1, 64, 1024}, sensors on.
+    PettingZoo env at N = 10, B ∈ {1, 64, 1024}, sensors on;
+(d) **the full workload against N** (``benchmarks.engine_scaling``): µs per copter-step of ``SwarmSim`` at the
+    lab's density for N ∈ {10, 100, 1 000, 10 000}, with the engine's cell grid and (to 1 000) the brute force.
 
 **Timing.** Each implementation is warmed up (compiled) first, the number of steps per timed call
 is calibrated to ≈ ``--seconds``, then the implementations of one configuration are timed in turn,
@@ -35,7 +37,7 @@ subprocess per configuration (torch's allocator is invisible to tracemalloc) —
 so compare VMAS's memory column with care.
 
 ``--quick`` runs a tiny subset (a few seconds with a warm numba cache): workload (a) for N ∈ {4, 10}
-× B ∈ {1, 64}, the scaling benchmark for N ∈ {10, 100}, no compile probes and no workload (b).
+× B ∈ {1, 64}, the scaling benchmark for N ∈ {10, 100}, no compile probes and no workloads (b)–(d).
 """
 from __future__ import annotations
 
@@ -289,6 +291,9 @@ def targets(res: dict) -> list[dict]:
         lambda x: x <= 5)
     add("warm (cached) first call, full workload ≤ 1 s", fk["warm"]["first_call_s"] if fk else None, "{:.2f} s",
         lambda x: x <= 1)
+    es = res.get("engine_scaling")
+    add("full workload cost per copter-step flat within ±30 % from N = 10 to 10 000 (engine, fixed density)",
+        es["spread"] * 100 if es else None, "±{:.0f} %", lambda x: x <= 30)
     env = _find(res.get("envs"), env="gymnasium vector", B=1024)
     add("Gymnasium vector env ≥ 100 k env-steps/s (N = 10, B = 1024, sensors on)",
         env["env_steps_per_s"] if env else None, "{:,.0f}", lambda x: x >= 1e5)
@@ -383,6 +388,10 @@ def report(res: dict) -> str:
     sc = res.get("scaling")
     if sc:
         L.append(sc["markdown"])
+    es = res.get("engine_scaling")
+    if es:
+        L.append("")
+        L.append(es["markdown"])
     L.append("")
     L.append("## Targets (from this run)")
     L.append("")
@@ -410,6 +419,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-scaling", action="store_true", help="skip benchmarks/scaling.py")
     ap.add_argument("--no-finken", action="store_true", help="skip workload (b)")
     ap.add_argument("--no-envs", action="store_true", help="skip (c), the RL environments")
+    ap.add_argument("--no-engine-scaling", action="store_true", help="skip (d), the full workload against N")
     a = ap.parse_args(argv)
 
     import numba
@@ -450,6 +460,11 @@ def main(argv=None) -> int:
         from . import scaling
 
         res["scaling"] = scaling.run(quick=a.quick, out_dir=out, log=log)
+    if not a.quick and not a.no_engine_scaling:
+        from . import engine_scaling
+
+        numba.set_num_threads(1)
+        res["engine_scaling"] = engine_scaling.run(log=log)
     numba.set_num_threads(max_threads)
     meta["load_end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
     md = report(res)
