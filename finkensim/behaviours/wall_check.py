@@ -58,7 +58,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config, ConfigError
-from ..kernels.cellgrid import NO_GRID, query_env
+from ..kernels.cellgrid import NO_GRID, no_grid_buffers, query_env
 from ..sensors.ranging_kernels import ranging_reach
 
 __all__ = ["WALL_CHECK_NONE", "WALL_CHECK_PER_READING", "WALL_CHECK_SEQUENCE", "WALL_CHECK_CODES",
@@ -184,11 +184,12 @@ def per_reading_env(sonar_b, rng_b, wp, fail_out, near):
     """
     pos_b, g, grid, on = near
     N = sonar_b.shape[0]
+    reach = ranging_reach(wp.ranging_max_range)
     for n in range(N):
         n_cand = -1
         if on:
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], ranging_reach(wp.ranging_max_range), n, g.x0, g.y0,
-                               g.inv_cell, g.nx, g.ny, grid[0], grid[1], grid[2], grid[4], grid[5])
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
+                               grid[1], grid[2], grid[4], grid[5])
         for k in range(sonar_b.shape[1]):
             fail_out[n, k] = reading_fails(sonar_b[n, k], rng_b[n], n, wp, grid[4], n_cand, N)
 
@@ -272,8 +273,7 @@ def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr
 @njit(cache=True, inline="always")
 def _no_grid(n):
     """``near`` of :func:`per_reading_env` without a grid (every column is scanned)."""
-    return (np.empty((n, 2)), NO_GRID, (np.empty(1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty((0, 2)),
-                                        np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0)), False)
+    return (np.empty((n, 2)), NO_GRID, no_grid_buffers(), False)
 
 
 @njit(cache=True, parallel=True)

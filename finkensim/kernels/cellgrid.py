@@ -65,7 +65,7 @@ from numba import njit
 
 
 __all__ = [
-    "GridSpec", "grid_spec", "grid_buffers", "GridParams", "NO_GRID", "grid_params", "EngineGrid", "engine_grid", "env_grid",
+    "GridSpec", "grid_spec", "grid_buffers", "GridParams", "NO_GRID", "grid_params", "EngineGrid", "engine_grid", "env_grid", "no_grid_buffers",
     "cell_coord", "build_env", "row_slots", "query_env", "count_env", "any_within_env", "raycast_fan_env",
 ]
 
@@ -178,6 +178,14 @@ def env_grid(g, b):
     :class:`EngineGrid` (the one empty set when the grid is off)."""
     i = np.int64(b) if g.on else np.int64(0)  # a prange index may be typed uint64
     return g.cell_start[i], g.order[i], g.spos[i], g.cell_of[i], g.found_idx[i], g.found_d2[i]
+
+
+@njit(cache=True, inline="always")
+def no_grid_buffers():
+    """One environment's buffers for a grid that is off (empty; what :func:`env_grid` gives for :data:`NO_GRID`):
+    for the batched APIs that call the engine's kernels without a grid."""
+    return (np.empty(1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
+            np.empty(0, dtype=np.int64), np.empty(0))
 
 
 # The query box is widened by this relative amount so that rounding of q ± r can never drop a cell

@@ -95,7 +95,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import ConfigError
-from ..kernels.cellgrid import NO_GRID
+from ..kernels.cellgrid import NO_GRID, no_grid_buffers
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
 from .sonar_kernels import (crosstalk_path, displaced_plates_env, down_env, echo_reading, fire_slot, fire_slots_env,
                             ideal_env, measured_reading, shifted_plates_env, sonar_hit, sonar_poses_env,
@@ -141,8 +141,7 @@ def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hi
         pb = np.empty((S, 2))
         sonar_buf = np.empty((N, sp.mount_yaw.shape[0], 4))
         off = NO_GRID
-        no = (np.empty(1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
-              np.empty(0, dtype=np.int64), np.empty(0))
+        no = no_grid_buffers()
         displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
         if measure:
             _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b],
