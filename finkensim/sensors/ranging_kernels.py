@@ -4,8 +4,9 @@ Every caller — the batched API (:func:`finkensim.sensors.ranging.ranging_readi
 :meth:`~finkensim.sensors.ranging.RangingModel.sample`) and compiled closed loops — computes readings
 with these functions, fed by the :class:`RangingParams` record (``RangingModel.params``):
 
-- :func:`ranging_reading`: the whole rule for one reading of true distance x (out of range → exactly
-  ``max_range``; mode dispatch; clip at 0), built from :func:`fast_reading` (modes ``mixture``,
+- :func:`reading_rule`: the whole rule for one reading of true distance x (out of range → exactly
+  ``max_range``; mode dispatch; clip at 0) on the unpacked fields of the record (:func:`ranging_reading` takes
+  the record itself, for single readings), built from :func:`fast_reading` (modes ``mixture``,
   ``gaussian``, ``none``) and :func:`seed_reading` (mode ``seed``); :func:`pick_component` draws the
   mixture component from the responsibility table (:mod:`finkensim.sensors.ranging_table`);
 - :func:`ranging_env`: one environment's readings (N, N + M); :func:`ranging_grid_env` the same readings with
@@ -25,10 +26,10 @@ and a reading depends only on (seed, env_id, step, i, j), never on the batch siz
 - ``seed``: ``normal(key, j·K + i)`` for component i;
 - ``gaussian``: ``normal(key, j)``.
 
-**Cost** (one core, shared machine): mixture ≈ 30 ns per reading, of which ≈ 19 ns are its random
-numbers (2 uniforms + 1 Box–Muller normal); the exact 100-exponential draw would be ≈ 500 ns.
-``seed`` ≈ 2.6 µs (100 normals ≈ 2.1 µs); ``gaussian`` ≈ 19 ns. :func:`ranging_reading` takes the
-record and is inlined, which costs nothing measurable against the unpacked arrays.
+**Cost** (one core): mixture ≈ 27 ns per reading, of which ≈ 14 ns are its random numbers (2 uniforms
++ 1 Box–Muller normal); the exact 100-exponential draw would be ≈ 500 ns. ``seed`` ≈ 2.6 µs (100 normals);
+``gaussian`` ≈ 14 ns. The loops unpack the record once: calling the inlined rule with the record itself cost
+≈ 60 ns per reading (see :class:`RangingParams`).
 """
 from __future__ import annotations
 
@@ -44,7 +45,8 @@ __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
     "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
     "ranging_reach", "ranging_reading",
-    "row_key", "sample_readings", "seed_reading",
+    "reading_rule", "row_key", "sample_readings", "seed_reading", "COMP_MEAN", "COMP_SLOPE", "COMP_COND_MEAN",
+    "COMP_COND_STD", "COMP_LOG_WN", "COMP_HALF_INV_COVAR", "COMP_SEED_STD",
 ]
 
 MODE_NONE = 0
@@ -55,16 +57,25 @@ MODE_SEED = 3
 MODES = {"none": MODE_NONE, "gaussian": MODE_GAUSSIAN, "mixture": MODE_MIXTURE, "seed": MODE_SEED}
 
 
+#: Columns of :attr:`RangingParams.comp`, one row per mixture component.
+COMP_MEAN, COMP_SLOPE, COMP_COND_MEAN, COMP_COND_STD, COMP_LOG_WN, COMP_HALF_INV_COVAR, COMP_SEED_STD = range(7)
+
+
 class RangingParams(NamedTuple):
     """Everything the kernels read, as one flat numba argument (built by ``RangingModel``).
 
     Scalars: ``mode`` (int64, a ``MODE_*`` code), ``max_range`` m, ``sigma`` m (``gaussian``),
     ``inv_h`` 1/m (inverse node spacing of the table). The responsibility table (``mixture`` only):
-    ``prob`` (G, K) float64 and ``alias`` (G, K) int32. Per component, (K,) float64: ``mean`` m,
-    ``slope`` (dimensionless), ``cond_mean`` m, ``cond_std`` = sqrt(cond_covar) m,
-    ``log_wn`` = log weights − ½ log(2π covar), ``half_inv_covar`` = 1/(2 covar) 1/m²,
-    ``seed_std`` = sqrt(seed_variance_factor · covar) m. Unused parts are small placeholders; all arrays
-    are read-only and C-contiguous, so every mode has the same numba type (one compilation).
+    ``prob`` (G, K) float64 and ``alias`` (G, K) int32. ``comp`` (K, 7) float64, one row per component,
+    columns ``COMP_*``: mean m, slope (dimensionless), cond_mean m, cond_std = sqrt(cond_covar) m,
+    log_wn = log weight − ½ log(2π covar), half_inv_covar = 1/(2 covar) 1/m², seed_std =
+    sqrt(seed_variance_factor · covar) m. Unused parts are small placeholders; all arrays are read-only and
+    C-contiguous, so every mode has the same numba type (one compilation).
+
+    Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = p``) and call
+    :func:`reading_rule`: passing a record that holds arrays into an inlined function copies it, one atomic
+    reference-count increment and decrement per array per call (≈ 40 ns per reading with the earlier
+    nine-array record, more than the reading itself).
     """
 
     mode: np.int64
@@ -73,13 +84,7 @@ class RangingParams(NamedTuple):
     inv_h: float
     prob: np.ndarray
     alias: np.ndarray
-    mean: np.ndarray
-    slope: np.ndarray
-    cond_mean: np.ndarray
-    cond_std: np.ndarray
-    log_wn: np.ndarray
-    half_inv_covar: np.ndarray
-    seed_std: np.ndarray
+    comp: np.ndarray
 
 
 def row_key(seed, env, step, copter) -> np.uint64:
@@ -121,54 +126,62 @@ def pick_components(xs, key, inv_h, prob, alias, out):
 
 
 @njit(cache=True)
-def seed_reading(x, key, j, mean, cond_mean, log_wn, half_inv_covar, seed_std):
+def seed_reading(x, key, j, comp):
     """``seed`` mode, before clipping, m: exact responsibilities at true distance x m, one normal per
-    component (``normal(key, j·K + i)``), the responsibility-weighted sum. Arrays (K,) as in
+    component (``normal(key, j·K + i)``), the responsibility-weighted sum. ``comp`` (K, 7) as in
     :class:`RangingParams`."""
-    k = mean.shape[0]
+    k = comp.shape[0]
     top = -np.inf
     for i in range(k):
-        d = x - mean[i]
-        lp = log_wn[i] - half_inv_covar[i] * d * d
+        d = x - comp[i, COMP_MEAN]
+        lp = comp[i, COMP_LOG_WN] - comp[i, COMP_HALF_INV_COVAR] * d * d
         if lp > top:
             top = lp
     total = 0.0
     acc = 0.0
     for i in range(k):
-        d = x - mean[i]
-        r = np.exp(log_wn[i] - half_inv_covar[i] * d * d - top)
+        d = x - comp[i, COMP_MEAN]
+        r = np.exp(comp[i, COMP_LOG_WN] - comp[i, COMP_HALF_INV_COVAR] * d * d - top)
         total += r
-        acc += r * (cond_mean[i] + seed_std[i] * normal(key, j * k + i))
+        acc += r * (comp[i, COMP_COND_MEAN] + comp[i, COMP_SEED_STD] * normal(key, j * k + i))
     return acc / total
 
 
 @njit(cache=True, inline="always")
-def fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, mean, slope, cond_mean, cond_std):
+def fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, comp):
     """``mixture`` / ``gaussian`` / ``none`` reading before clipping, m, of column j for true distance x in
     [0, max_range] m (row key ``key``). Arguments as the fields of :class:`RangingParams`."""
     if mode == MODE_MIXTURE:
         c = pick_component(x, uniform(key, 4 * j), uniform(key, 4 * j + 1), inv_h, prob, alias)
-        return cond_mean[c] + slope[c] * (x - mean[c]) + cond_std[c] * normal(key, 2 * j + 1)
+        return (comp[c, COMP_COND_MEAN] + comp[c, COMP_SLOPE] * (x - comp[c, COMP_MEAN])
+                + comp[c, COMP_COND_STD] * normal(key, 2 * j + 1))
     if mode == MODE_GAUSSIAN:
         return x + sigma * normal(key, j)
     return x
 
 
 @njit(cache=True, inline="always")
-def ranging_reading(x, key, j, p):
-    """The reading, m, of column j for true distance x ≥ 0 m in the row with counter key ``key``.
+def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
+    """The reading, m, of column j for true distance x ≥ 0 m in the row with counter key ``key``; the other
+    arguments are the fields of a :class:`RangingParams`, unpacked (see there why).
 
-    x > ``p.max_range`` reads exactly ``max_range``; otherwise the mode's draw (:func:`seed_reading` or
-    :func:`fast_reading`), clipped at 0. ``p`` is a :class:`RangingParams`.
+    x > ``max_range`` reads exactly ``max_range``; otherwise the mode's draw (:func:`seed_reading` or
+    :func:`fast_reading`), clipped at 0.
     """
-    if x > p.max_range:
-        return p.max_range
-    if p.mode == MODE_SEED:
-        y = seed_reading(x, key, j, p.mean, p.cond_mean, p.log_wn, p.half_inv_covar, p.seed_std)
+    if x > max_range:
+        return max_range
+    if mode == MODE_SEED:
+        y = seed_reading(x, key, j, comp)
     else:
-        y = fast_reading(x, key, j, p.mode, p.sigma, p.inv_h, p.prob, p.alias, p.mean, p.slope, p.cond_mean,
-                         p.cond_std)
+        y = fast_reading(x, key, j, mode, sigma, inv_h, prob, alias, comp)
     return y if y > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def ranging_reading(x, key, j, p):
+    """:func:`reading_rule` with the fields of the :class:`RangingParams` ``p`` (for a single reading; loops
+    unpack ``p`` once and call :func:`reading_rule`)."""
+    return reading_rule(x, key, j, p.mode, p.max_range, p.sigma, p.inv_h, p.prob, p.alias, p.comp)
 
 
 @njit(cache=True, inline="always")
@@ -181,6 +194,7 @@ def ranging_env(pos_b, beacons, seed, env, step, p, out):
     """
     n = pos_b.shape[0]
     m = beacons.shape[0]
+    mode, max_range, sigma, inv_h, prob, alias, comp = p
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
         xi = pos_b[i, 0]
@@ -195,7 +209,8 @@ def ranging_env(pos_b, beacons, seed, env, step, p, out):
             else:
                 dx = beacons[j - n, 0] - xi
                 dy = beacons[j - n, 1] - yi
-            out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
+            out[i, j] = reading_rule(np.sqrt(dx * dx + dy * dy), key, j, mode, max_range, sigma, inv_h, prob, alias,
+                                     comp)
 
 
 @njit(cache=True, inline="always")
@@ -222,13 +237,14 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
     m = beacons.shape[0]
     cell_start, order, spos, cell_of, found, found_d2 = grid
     build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
-    reach = ranging_reach(p.max_range)
+    mode, max_range, sigma, inv_h, prob, alias, comp = p
+    reach = ranging_reach(max_range)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
         xi = pos_b[i, 0]
         yi = pos_b[i, 1]
         for j in range(n):
-            out[i, j] = p.max_range
+            out[i, j] = max_range
         out[i, i] = 0.0
         if reach < np.inf:
             count = query_env(xi, yi, reach, i, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, found,
@@ -243,11 +259,13 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
             j = found[c]
             dx = pos_b[j, 0] - xi
             dy = pos_b[j, 1] - yi
-            out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
+            out[i, j] = reading_rule(np.sqrt(dx * dx + dy * dy), key, j, mode, max_range, sigma, inv_h, prob, alias,
+                                     comp)
         for j in range(n, n + m):
             dx = beacons[j - n, 0] - xi
             dy = beacons[j - n, 1] - yi
-            out[i, j] = ranging_reading(np.sqrt(dx * dx + dy * dy), key, j, p)
+            out[i, j] = reading_rule(np.sqrt(dx * dx + dy * dy), key, j, mode, max_range, sigma, inv_h, prob, alias,
+                                     comp)
 
 
 @njit(cache=True, parallel=True)
@@ -262,5 +280,6 @@ def ranging_batch(positions, beacons, seed, env_ids, step, p, out):
 def sample_readings(xs, key, p, out):
     """out[j]: :func:`ranging_reading` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
     (in parallel: each column's random numbers depend on j alone)."""
+    mode, max_range, sigma, inv_h, prob, alias, comp = p
     for j in prange(xs.shape[0]):
-        out[j] = ranging_reading(xs[j], key, j, p)
+        out[j] = reading_rule(xs[j], key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
