@@ -89,11 +89,12 @@ def settle_distance(cfg: Config) -> float:
 
 
 @njit(cache=True, inline="always")
-def random_target_env(seed, env_id, step, n, ap):
-    """Body-frame random target offset (x, y) m of copter n at this step (redrawn every redraw_steps)."""
-    key = counter_key(seed, env_id, step // ap.redraw_steps, n, STREAM_BEHAVIOUR)
+def random_target_env(seed, env_id, step, n, redraw_steps, target_distance):
+    """Body-frame random target offset (x, y) m of copter n at this step (redrawn every ``redraw_steps`` steps,
+    at ``target_distance`` m; the fields of :class:`AttractionParams`)."""
+    key = counter_key(seed, env_id, step // redraw_steps, n, STREAM_BEHAVIOUR)
     phi = 2.0 * np.pi * uniform(key, 0)
-    return ap.target_distance * np.cos(phi), ap.target_distance * np.sin(phi)
+    return target_distance * np.cos(phi), target_distance * np.sin(phi)
 
 
 @njit(cache=True, inline="always")
@@ -101,6 +102,10 @@ def attraction_env(sonar_b, wall_b, seed, env_id, step, ap, cmd_v, cmd_w):
     """Commands of one environment. sonar_b (N, 4) m, wall_b (N, 4) bool → cmd_v (N, 2) m/s body frame,
     cmd_w (N,) rad/s (always 0)."""
     inv_c = 1.0 / ap.c
+    # the arrays taken out of the record once: reading them from it inside the loop, or passing the record to an
+    # inlined function there, costs atomic reference counting on every use
+    mount_cos = ap.mount_cos
+    mount_sin = ap.mount_sin
     for n in range(sonar_b.shape[0]):
         dx = 0.0
         dy = 0.0
@@ -108,14 +113,14 @@ def attraction_env(sonar_b, wall_b, seed, env_id, step, ap, cmd_v, cmd_w):
             r = sonar_b[n, k]
             if r >= ap.max_range:
                 continue  # no echo: no object
-            px = r * ap.mount_cos[k]
-            py = r * ap.mount_sin[k]
+            px = r * mount_cos[k]
+            py = r * mount_sin[k]
             f = -ap.b * np.exp(-(px * px + py * py) * inv_c)
             if not wall_b[n, k]:
                 f += ap.a
             dx += px * f
             dy += py * f
-        tx, ty = random_target_env(seed, env_id, step, n, ap)
+        tx, ty = random_target_env(seed, env_id, step, n, ap.redraw_steps, ap.target_distance)
         vx = ap.gain * (ap.w_c * dx + ap.w_t * ap.a * tx)
         vy = ap.gain * (ap.w_c * dy + ap.w_t * ap.a * ty)
         sp = np.sqrt(vx * vx + vy * vy)

@@ -27,7 +27,7 @@ from ..sensors.imu import ImuModel
 from ..sensors.ranging import RangingModel
 from ..kernels.raycast import HIT_NONE
 from ..sensors.sonar_kernels import measured_reading
-from ..sensors.sonar_model import SonarModel, rayleigh_std
+from ..sensors.sonar_model import SonarModel, rayleigh_std, sonar_scalars
 
 __all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_reading_draws", "gaussian_draws"]
 
@@ -132,10 +132,11 @@ def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, out):
     Row i draws from ``counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)``, draw m from block m.
     """
     n, M = dist.shape
+    sps = sonar_scalars(sp)  # the per-reading calls take the scalars only (see SonarScalars)
     for i in prange(n):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
         for m in range(M):
-            out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sp)
+            out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps)
 
 
 @njit(cache=True, parallel=True)

@@ -28,9 +28,9 @@ from ..flightlog.messages import plural
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
-from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, ideal_ray, shifted_plates_env,
-                                     sonar_hit, sonar_poses_env)
-from ..sensors.sonar_model import SonarModel, WallGeometry, wall_geometry
+from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
+                                     sonar_poses_env, store_ideal)
+from ..sensors.sonar_model import SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
 
 
@@ -206,7 +206,8 @@ class ReplayPoses(NamedTuple):
     bulge: np.ndarray
 
 
-_ideal_ray_fn = njit(cache=True)(ideal_ray.py_func)
+# the nearest echo of one sonar as a called function (not inlined: shorter compilation of the replay)
+_sonar_hit_fn = njit(cache=True)(sonar_hit.py_func)
 
 
 @njit(cache=True)
@@ -214,7 +215,10 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
     """The M pose draws at sample k into row ti of the outputs, for the rays with need[ti, n, s] (the others get
     NaN, HIT_NONE, inf): the plates (which no pose draw moves) are placed once, the work arrays allocated once."""
     N = poses.pos.shape[1]
-    S = sp.mount_yaw.shape[0]
+    mount_yaw = sp.mount_yaw
+    rays = sp.ray_angles
+    sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
+    S = mount_yaw.shape[0]
     P = w.plate_a.shape[0]
     pos_m = np.empty((N, 2))
     yaw_m = np.empty(N)
@@ -237,7 +241,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
     for m in range(M):
         draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
         sonar_poses_env(pos_m, yaw_m, sp, buf)
-        fire_slots_env(noise.seed, noise.flight_id, k, sp, slots, m)
+        fire_slots_env(noise.seed, noise.flight_id, k, sps, slots, m)
         for n in range(N):
             for s in range(S):
                 if not need[ti, n, s]:
@@ -245,11 +249,12 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
                     out_kind[ti, n, s, m] = HIT_NONE
                     out_xtalk[ti, n, s, m] = np.inf
                     continue
-                _ideal_ray_fn(n, s, pos_m, yaw_m, pa, pb, w.width, w.length, sp, buf, bands, dist, kind, hit, all_,
-                              -1)
+                t_, hk, hx, hy = _sonar_hit_fn(n, s, yaw_m[n] + mount_yaw[s], pos_m, pa, pb, w.width, w.length, sps,
+                                               rays, buf, bands, all_, -1)
+                store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sp, all_, -1)
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1)
 
 
 @njit(cache=True, parallel=True)
@@ -339,8 +344,8 @@ def sonar_features(poses, w, sp, times, sigma_xy, sigma_yaw, out):
         for n in range(N):
             wd = min(min(P2[n, 0], w.width - P2[n, 0]), min(P2[n, 1], w.length - P2[n, 1]))
             for s in range(S):
-                t_, hk, hx, hy = sonar_hit(n, s, P2, poses.yaw[k], pa, pbb, w.width, w.length, sp, buf, bands,
-                                           np.empty(0, dtype=np.int64), -1)
+                t_, hk, hx, hy = sonar_hit(n, s, poses.yaw[k, n] + sp.mount_yaw[s], P2, pa, pbb, w.width, w.length,
+                                           sp, sp.ray_angles, buf, bands, np.empty(0, dtype=np.int64), -1)
                 o = out[ti, n, s]
                 o[6] = wd
                 if t_ > sp.max_range:

@@ -15,7 +15,9 @@ closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.rep
 - :func:`ultrasonic_env`, :func:`down_env`: one environment's measured readings.
 
 All are ``inline="always"`` numba functions of arrays, numbers and the model record, so compiled loops
-can call them with work buffers allocated once. The model, the random-number layout and the units
+can call them with work buffers allocated once. The functions called once per ray or reading take the model's
+:class:`~finkensim.sensors.sonar_model.SonarScalars` (any record with the scalar fields works; the model itself
+too, at the cost of copying its arrays' references on every call). The model, the random-number layout and the units
 are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sp.mount_yaw.shape[0]``
 (4 in the simulator).
 """
@@ -28,9 +30,9 @@ from ..kernels.cellgrid import build_env, query_env
 from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
 from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
-                          ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN)
+                          ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 
-__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "ideal_ray", "ideal_env", "fire_slot",
+__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
            "fire_slots_env", "crosstalk_path", "echo_reading", "clamp_reading", "measured_reading",
            "ultrasonic_env", "down_env"]
 
@@ -71,40 +73,43 @@ def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_o
 @njit(cache=True, inline="always")
 def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
     """Sonar origins and headings of one environment → sonar_buf (N, S, 4): (x m, y m, cos ψ, sin ψ)."""
+    mount_yaw = sp.mount_yaw
+    offset = sp.offset
     for n in range(pos_b.shape[0]):
-        for k in range(sp.mount_yaw.shape[0]):
-            psi = yaw_b[n] + sp.mount_yaw[k]
+        for k in range(mount_yaw.shape[0]):
+            psi = yaw_b[n] + mount_yaw[k]
             c = np.cos(psi)
             s = np.sin(psi)
-            sonar_buf[n, k, 0] = pos_b[n, 0] + sp.offset * c
-            sonar_buf[n, k, 1] = pos_b[n, 1] + sp.offset * s
+            sonar_buf[n, k, 0] = pos_b[n, 0] + offset * c
+            sonar_buf[n, k, 1] = pos_b[n, 1] + offset * s
             sonar_buf[n, k, 2] = c
             sonar_buf[n, k, 3] = s
 
 
 @njit(cache=True, inline="always")
-def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, cand, n_cand):
+def sonar_hit(n, k, psi, pos_b, pa, pb, width, length, sp, rays, sonar_buf, bands, cand, n_cand):
     """Nearest echo of sonar k of copter n over the rays of its beam, not limited to the range.
 
-    Geometry as :func:`ideal_env` (sonar_buf from :func:`sonar_poses_env`, bands from
-    :func:`~finkensim.kernels.raycast.plate_bands`); the copters tested: all when ``n_cand`` < 0, else
+    psi rad: the sonar's heading, yaw_b[n] + mount_yaw[k]; rays (R,) rad: the beam's ray angles relative to it
+    (``SonarModel.ray_angles``); sp: the model's :class:`~finkensim.sensors.sonar_model.SonarScalars` (or the
+    model; its ``radius`` is read). Geometry as :func:`ideal_env` (sonar_buf from :func:`sonar_poses_env`, bands
+    from :func:`~finkensim.kernels.raycast.plate_bands`); the copters tested: all when ``n_cand`` < 0, else
     cand[:n_cand] (:func:`~finkensim.kernels.raycast.copter_hits`). Returns (t m, kind HIT_*, hx m, hy m): the
     distance (inf when a ray escapes nothing — never inside the arena), what was hit, and where (NaN if nothing).
     """
     ox = sonar_buf[n, k, 0]
     oy = sonar_buf[n, k, 1]
-    psi = yaw_b[n] + sp.mount_yaw[k]
-    R = sp.ray_angles.shape[0]
+    R = rays.shape[0]
     best = np.inf
     bkind = HIT_NONE
     hx = np.nan
     hy = np.nan
     for r in range(R):
-        if R == 1 and sp.ray_angles[0] == 0.0:
+        if R == 1 and rays[0] == 0.0:
             dx = sonar_buf[n, k, 2]
             dy = sonar_buf[n, k, 3]
         else:
-            a = psi + sp.ray_angles[r]
+            a = psi + rays[r]
             dx = np.cos(a)
             dy = np.sin(a)
         t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands, cand, n_cand)
@@ -117,16 +122,15 @@ def sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, c
 
 
 @njit(cache=True, inline="always")
-def ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit, cand, n_cand):
-    """Ideal reading of sonar k of copter n into dist[n, k], kind[n, k], hit[n, k] (as :func:`ideal_env`; copters
-    tested as :func:`sonar_hit`)."""
-    best, bkind, hx, hy = sonar_hit(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, cand, n_cand)
-    if best > sp.max_range:
-        dist[n, k] = sp.max_range
+def store_ideal(n, k, best, bkind, hx, hy, max_range, sonar_buf, dist, kind, hit):
+    """The ideal reading of sonar k of copter n from its :func:`sonar_hit` (best, bkind, hx, hy) into dist[n, k],
+    kind[n, k], hit[n, k] (as :func:`ideal_env`: beyond ``max_range`` m reads max_range, HIT_NONE)."""
+    if best > max_range:
+        dist[n, k] = max_range
         kind[n, k] = HIT_NONE
         if not np.isfinite(best):
-            hx = sonar_buf[n, k, 0] + sp.max_range * sonar_buf[n, k, 2]
-            hy = sonar_buf[n, k, 1] + sp.max_range * sonar_buf[n, k, 3]
+            hx = sonar_buf[n, k, 0] + max_range * sonar_buf[n, k, 2]
+            hy = sonar_buf[n, k, 1] + max_range * sonar_buf[n, k, 3]
     else:
         dist[n, k] = best
         kind[n, k] = bkind
@@ -151,19 +155,24 @@ def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hi
     """
     sonar_poses_env(pos_b, yaw_b, sp, sonar_buf)
     bands = plate_bands(pa, pb, width, length)
-    found = grid[4]
+    cell_start, order, spos, cell_of, found, found_d2 = grid
     if g.on:
-        build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0], grid[1], grid[2], grid[3])
+        build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
+    sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
+    mount_yaw = sp.mount_yaw
+    rays = sp.ray_angles
     # a hit at t ≤ max_range from the sonar has its circle's centre within t + radius of the sonar (exactly; the
     # computed t of a grazing ray can be off by ~sqrt(eps)·scale ≈ 1e-8·scale, hence the 1e-6 margin)
-    reach = (sp.max_range + sp.radius + abs(sp.offset)) * (1.0 + 1e-6)
+    reach = (sps.max_range + sps.radius + abs(sps.offset)) * (1.0 + 1e-6)
     for n in range(pos_b.shape[0]):
         n_cand = -1
         if g.on:
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
-                               grid[1], grid[2], found, grid[5])
-        for k in range(sp.mount_yaw.shape[0]):
-            ideal_ray(n, k, pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, bands, dist, kind, hit, found, n_cand)
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start,
+                               order, spos, found, found_d2)
+        for k in range(mount_yaw.shape[0]):
+            best, bkind, hx, hy = sonar_hit(n, k, yaw_b[n] + mount_yaw[k], pos_b, pa, pb, width, length, sps, rays,
+                                            sonar_buf, bands, found, n_cand)
+            store_ideal(n, k, best, bkind, hx, hy, sps.max_range, sonar_buf, dist, kind, hit)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -317,26 +326,29 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
     """
     sonar_buf, dist, kind, hit, slot = work
     ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit, g, grid)
-    geometric = sp.crosstalk & CROSSTALK_GEOMETRIC
+    sps = sonar_scalars(sp)  # the per-reading calls take the scalars only (see SonarScalars)
+    n_sonars = sp.mount_yaw.shape[0]
+    geometric = sps.crosstalk & CROSSTALK_GEOMETRIC
     if geometric:
-        fire_slots_env(seed, env_id, step, sp, slot, 0)
-    found = grid[4]
-    reach = 2.0 * (sp.max_range + abs(sp.offset)) * (1.0 + 1e-6)
+        fire_slots_env(seed, env_id, step, sps, slot, 0)
+    cell_start, order, spos, cell_of, found, found_d2 = grid
+    reach = 2.0 * (sps.max_range + abs(sps.offset)) * (1.0 + 1e-6)
     for n in range(pos_b.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
         n_cand = -1
         if geometric and g.on:  # the grid ideal_env built
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
-                               grid[1], grid[2], found, grid[5])
-        for k in range(sp.mount_yaw.shape[0]):
-            path = crosstalk_path(n, k, sonar_buf, slot, sp, found, n_cand) if geometric else np.inf
-            out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sp)
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start,
+                               order, spos, found, found_d2)
+        for k in range(n_sonars):
+            path = crosstalk_path(n, k, sonar_buf, slot, sps, found, n_cand) if geometric else np.inf
+            out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
 
 
 @njit(cache=True, inline="always")
 def down_env(alt_b, sp, seed, env_id, step, out):
     """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
+    sps = sonar_scalars(sp)
     for n in range(alt_b.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
         d = alt_b[n]
-        out[n] = clamp_reading(echo_reading(d, d <= sp.max_range, key, DOWN_SONAR, sp), sp)
+        out[n] = clamp_reading(echo_reading(d, d <= sps.max_range, key, DOWN_SONAR, sps), sps)
