@@ -17,7 +17,7 @@ closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.rep
 All are ``inline="always"`` numba functions of arrays, numbers and the model record, so compiled loops
 can call them with work buffers allocated once. The functions called once per ray or reading take the model's
 :class:`~finkensim.sensors.sonar_model.SonarScalars` (any record with the scalar fields works; the model itself
-too, at the cost of copying its arrays' references on every call). The model, the random-number layout and the units
+too, at the cost of reference-counting its arrays on every call). The model, the random-number layout and the units
 are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sp.mount_yaw.shape[0]``
 (4 in the simulator).
 """
