@@ -288,7 +288,7 @@ class GapConfig(_Section):
     alpha: float = _f(0.05, "", 0.0, 0.5, lo_open=True, doc="false-discovery rate for locations and significance level")
     margin: float = _f(0.02, "", 0.0, 10.0, doc="practical-significance margin on the normalised gap")
     accept_gain: float = _f(0.1, "", 0.0, 1.0, doc="an effect is added when it removes at least this fraction of the configured model's gap")
-    accept_improvement: float = _f(0.003, "", 0.0, 1.0, doc="a further effect (after the first) is also added when its held-out score improvement is at least this (in units of each sensor's typical error) and significant after Bonferroni over the candidates")
+    accept_improvement: float = _f(0.003, "", 0.0, 1.0, doc="a further effect (after the first) is also added when its held-out score improvement is at least this (in units of the current model's typical error: each sensor's configured-model error times the current held-out score over the configured one's) and significant after Bonferroni over the candidates")
     unexplained_shrink: float = _f(0.7, "", 0.0, 1.0, doc="below this held-out shrink a significant gap is 'unexplained' (if what the selected effects leave is itself significant)")
     tie_tolerance: float = _f(0.1, "", 0.0, 1.0, doc="effects whose held-out improvement is within this fraction of the best are near ties")
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")
