@@ -45,11 +45,15 @@ kernels take: ``on`` says whether this run's environments are large enough for t
 (``simulation.grid_min_copters``), and the geometry. Kernels with a copter-copter loop take it with
 the per-environment buffers and run the grid query when ``on``, the brute force otherwise; both
 decide membership by the same exact test, so the results are identical (``tests/test_cellgrid.py``).
-Users so far: copter contacts (:func:`~finkensim.copters.update_contacts_env`, :func:`any_within_env`) and
-virtual ranging (:func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`, :func:`query_env`).
+Users: copter contacts (:func:`~finkensim.copters.update_contacts_env`, :func:`any_within_env`), virtual ranging
+(:func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`), sonar rays and cross-talk, and the wall check
+(:func:`query_env`).
 
-**Kernels.** ``*_env`` functions are ``inline="always"`` per-environment kernels (arrays and
-numbers only) for compiled rollouts: allocate the grid buffers once per environment
+**Kernels.** ``*_env`` functions are per-environment kernels (arrays and numbers only) for compiled rollouts. The
+four the engine calls (:func:`build_env`, :func:`query_env`, :func:`count_env`, :func:`any_within_env`) are compiled
+functions, not inlined: inlined into the sonar, ranging, contact and wall-check kernels they made the cold compile of
+the full workload 6.5 s longer (``benchmarks.compile_probe finken``: 48.5 → 42.0 s), while as calls they cost nothing
+measurable at 10 copters (the grid is off there) and ≈ 3 % at 1 024. Allocate the grid buffers once per environment
 (:func:`grid_buffers`), call :func:`build_env` each step, then query. The batched wrappers
 (:func:`build_grid`, :func:`neighbour_counts`, :func:`neighbours_within`, :func:`raycast_fan`) loop
 over the leading environment axis with ``prange`` (:mod:`finkensim.kernels.cellgrid_batch`). NumPy references
@@ -208,7 +212,7 @@ def cell_coord(v, v0, inv_cell, n):
     return int(f)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def build_env(pos_b, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of):
     """Counting sort of one environment's copters pos_b (N, 2) into cells; fills the grid buffers.
 
@@ -280,7 +284,7 @@ def query_rows(qx, qy, r, y0, inv_cell, ny):
     return pad, rb, 1.0 / inv_cell, cell_coord(qy - rb, y0, inv_cell, ny), cell_coord(qy + rb, y0, inv_cell, ny)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos, out_idx, out_d2):
     """Copters within r (squared distance ≤ r²) of point (qx, qy), except copter ``skip`` (−1: none).
 
@@ -307,7 +311,7 @@ def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
     return n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
     """Number of copters within r of (qx, qy), except ``skip`` (as :func:`query_env`, no output)."""
     pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
@@ -322,7 +326,7 @@ def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
     return n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def any_within_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
     """Whether some copter other than ``skip`` is strictly closer than r to (qx, qy): squared distance
     (q − p)·(q − p) < r², the brute force's test (the sign of a difference does not change its square)."""
