@@ -66,21 +66,24 @@ def test_two_effects_at_once_are_both_named(pair):
         assert rep.details.waterfall[-1]["step"] == "joint refit"
 
 
-def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_joint_fit():
-    """wall_bulge + sonar_bias, seed 0 of the random conventions axis (the validation trial that named sound_speed):
-    with the bulge fitted first, the greedy second step and the final refit settled on a range scale; fitting the
-    bulge jointly with the leading alternatives on the sonar finds the bias, significantly better on held-out."""
+@pytest.mark.parametrize("seed, greedy", [(0, "sound_speed"), (2, "sonar_rayleigh_scale")])
+def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_joint_fit(seed, greedy):
+    """wall_bulge + sonar_bias, seeds 0 and 2 of the random conventions axis (validation trials that named sound_speed
+    and sonar_rayleigh_scale): with the bulge fitted first, the greedy second step and the final refit settled on
+    another sonar effect; fitting the bulge jointly with the runners-up of that step finds the bias, significantly
+    better on held-out. (Seed 2 needs the runners-up of the second step: the first round ranked the bias behind beam
+    width and constant cross-talk.)"""
     import zlib
     import numpy as np
     from finkensim.gap.conventions import draw_conventions
     name = "wall_bulge+sonar_bias"
-    conv = draw_conventions(np.random.default_rng([0, zlib.crc32(name.encode())]))
-    logs, cfg, _ = generate(get_case(name), 0, n_flights=2, duration=30.0, conventions=conv)
+    conv = draw_conventions(np.random.default_rng([seed, zlib.crc32(name.encode())]))
+    logs, cfg, _ = generate(get_case(name), seed, n_flights=2, duration=30.0, conventions=conv)
     rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg))
     v = rep["verdict"]
     assert v["effects"] == ["wall_bulge", "sonar_bias"] and not v["unexplained"], v
     steps = [w["step"] for w in rep.details.waterfall]
-    assert steps[-1] == "joint swap" and "+ sound_speed" in steps, steps
+    assert steps[-1] == "joint swap" and f"+ {greedy}" in steps, steps
     assert 0.7 <= v["shrink_heldout"] <= 1.0
 
 

@@ -73,7 +73,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     # greedy forward selection on the held-out score
     current, cur_scores, cur_gaps, cur_score = base, base_scores, gap_vals, score_before
     steps = [("configured model", None, base_scores, gap_vals, None)]
-    added, pool, ambiguous = [], list(first), []
+    added, pool, ambiguous, runners_up = [], list(first), [], []
     while significant and pool and len(added) < max_added:
         if added:  # refit the leading remaining candidates on top of what was added
             # every remaining effect on a sensor with a gap, plus the leading others (the first round's order
@@ -105,6 +105,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             break
         if not added:
             ambiguous = _near_ties(pool, best, cur_score, cfg.tie_tolerance)
+        elif len(added) == 1:  # the runners-up of the second pick, fitted on top of the first: its alternatives
+            runners_up = [r for r in pool if r.name != best.name]
         added.append(best)
         current, cur_scores, cur_gaps = best.params, best.rows_score, best.rows_gap
         cur_score = best.score_heldout
@@ -136,7 +138,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         return chain, last.params, last.rows_score, last.rows_gap, last.score_heldout
 
     if len(added) == 2:
-        swap = _swap_second(diag, added, first, evaluated)
+        swap = _swap_second(diag, added, runners_up or first, evaluated)
         if significantly_better(swap):
             added, current, cur_scores, cur_gaps, cur_score = adopt(swap, "joint swap")
 
@@ -296,10 +298,13 @@ def _pair_second_chance(diag, first_added, first, evaluated):
     return _best_joint_pair(diag, first_added, others, evaluated)
 
 
-def _swap_second(diag, added, first, evaluated, top: int = 2):
+def _swap_second(diag, added, ranked, evaluated, top: int = 2):
     """When two effects on a shared sensor were selected: the first fitted jointly with each of the ``top``
-    leading first-round candidates that share a sensor with the second (other than the two), the alternatives to
-    the second. Returns the best such pair's chain of FitResults (held-out scored; rows appended to
+    leading candidates of ``ranked`` that share a sensor with the second (other than the two), the alternatives to
+    the second. ``ranked``: the runners-up of the round that picked the second (fitted on top of the first, by
+    held-out score); the first round's ranking says little once an effect is in (wall_bulge + sonar_bias, seed 2 of
+    the random conventions: the first round's leaders on the sonar were beam width and constant cross-talk, the bias
+    ranked behind them). Returns the best such pair's chain of FitResults (held-out scored; rows appended to
     ``evaluated``), or None.
 
     Why: effects on one sensor trade off (a constant bias and a range scale both shift readings at the distances
@@ -309,7 +314,7 @@ def _swap_second(diag, added, first, evaluated, top: int = 2):
     if not set(second.sensors) & set(fx.REGISTRY[added[0].name].sensors):
         return None  # fitted on top of an effect on other sensors, the second step had nothing to trade off with
     names = {r.name for r in added}
-    others = [r for r in first if r.name not in names and set(fx.REGISTRY[r.name].sensors) & set(second.sensors)][:top]
+    others = [r for r in ranked if r.name not in names and set(fx.REGISTRY[r.name].sensors) & set(second.sensors)][:top]
     if not others:
         return None
     diag.say(f"  alternatives to {second.name}: fitting {added[0].name} jointly with {', '.join(r.name for r in others)}")
