@@ -15,8 +15,10 @@ N × N (written in full each step), so the grid column still grows with N.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
+from pathlib import Path
 
 from benchmarks.workloads import finken_config
 
@@ -52,8 +54,43 @@ def spread(costs) -> float:
     return max(costs) / math.sqrt(max(costs) * min(costs)) - 1.0
 
 
-def run(log=print, sizes=BENCH_SIZES, brute_max=BENCH_BRUTE_MAX) -> dict:
-    """Rows {N, grid_us, brute_us or None}, the grid column's spread and a markdown table (for ``make bench``)."""
+def figure(rows, path) -> Path | None:
+    """Log-log figure of µs per copter-step against N (grid and brute force) with the ±30 % band of the target
+    around the geometric mean of the grid column; rows as returned by :func:`run`. None without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    n = [r["N"] for r in rows]
+    g = [r["grid_us"] for r in rows]
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    centre = math.sqrt(max(g) * min(g))
+    ax.axhspan(centre / 1.3, centre * 1.3, color="0.85", label="target: flat within ±30 %")
+    ax.plot(n, g, "o-", label="cell grid (on from 64 copters)")
+    brute = [(r["N"], r["brute_us"]) for r in rows if r.get("brute_us")]
+    if brute:
+        ax.plot(*zip(*brute), "s--", label="brute force")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("copters N (arena grows with N: 1.2 m² per copter)")
+    ax.set_ylabel("µs per copter-step (one thread)")
+    ax.set_title("Full FINken workload in the engine against N")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def run(log=print, sizes=BENCH_SIZES, brute_max=BENCH_BRUTE_MAX, out_dir=None) -> dict:
+    """Rows {N, grid_us, brute_us or None}, the grid column's spread and a markdown table (for ``make bench``);
+    with ``out_dir`` also the figure ``engine_scaling.png`` there (:func:`figure`)."""
     rows = []
     for n in sizes:
         steps = max(5, 20_000 // n)
@@ -71,6 +108,8 @@ def run(log=print, sizes=BENCH_SIZES, brute_max=BENCH_BRUTE_MAX) -> dict:
         brute, ratio = (f"{b:.2f}", f"{b / g:.1f}") if b else ("—", "—")
         L.append(f"| {r['N']:,} | {g:.2f} | {brute} | {ratio} |")
     L += ["", f"Grid column spread: ±{100 * sp:.0f} % around its geometric mean (target ±30 %)."]
+    if out_dir is not None and figure(rows, Path(out_dir) / "engine_scaling.png"):
+        L += ["", "![full workload against N](engine_scaling.png)"]
     return dict(rows=rows, spread=sp, markdown="\n".join(L))
 
 
@@ -81,7 +120,13 @@ def main(argv=None) -> None:
     ap.add_argument("--brute-max", type=int, default=1024, help="largest N timed with the brute force too")
     ap.add_argument("--wall-check", default="none", choices=("none", "per_reading", "sequence"),
                     help="the behaviour's wall check (default none, as in make bench's full workload)")
+    ap.add_argument("--plot", nargs=2, metavar=("BENCH_JSON", "PNG"),
+                    help="only redraw the figure from the section (d) rows of a make bench result (bench.json)")
     args = ap.parse_args(argv)
+    if args.plot:
+        rows = json.loads(Path(args.plot[0]).read_text())["engine_scaling"]["rows"]
+        print(figure(rows, args.plot[1]))
+        return
     sizes = args.sizes or ([10, 64, 256] if args.quick else [10, 32, 64, 128, 256, 512, 1024, 2048, 4096])
     print(f"{'N':>6} {'grid µs/copter-step':>20} {'brute µs/copter-step':>21} {'brute/grid':>11}")
     costs = []

@@ -409,7 +409,7 @@ def report(res: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="finkensim benchmarks (make bench)")
     ap.add_argument("--quick", action="store_true", help="tiny subset, a few seconds")
-    ap.add_argument("--out", default="out/bench", help="output directory (bench.md, bench.json, scaling.png)")
+    ap.add_argument("--out", default="out/bench", help="output directory (bench.md, bench.json, scaling.png, engine_scaling.png)")
     ap.add_argument("--peers-python", default=None,
                     help="Python with torch and vmas (default: .venv-peers/bin/python, from `make bench-peers`)")
     ap.add_argument("--no-peers", action="store_true", help="skip VMAS")
@@ -464,7 +464,7 @@ def main(argv=None) -> int:
         from . import engine_scaling
 
         numba.set_num_threads(1)
-        res["engine_scaling"] = engine_scaling.run(log=log)
+        res["engine_scaling"] = engine_scaling.run(log=log, out_dir=out)
     numba.set_num_threads(max_threads)
     meta["load_end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
     md = report(res)

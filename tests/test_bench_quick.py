@@ -63,3 +63,20 @@ def test_comparison_workload_numba_equals_numpy():
             np.testing.assert_allclose(a.sonar, c.sonar, rtol=0, atol=1e-9)
             np.testing.assert_allclose(a.dist, c.dist, rtol=0, atol=1e-9)
         assert np.all(a.sonar <= 3.0) and np.all(a.sonar >= 0.0)
+
+
+def test_engine_scaling_measures_small_swarms_and_draws_the_figure(tmp_path):
+    """Section (d) of make bench on two tiny sizes (grid off at 8, on at 64 copters): positive costs, the spread of
+    the grid column, a markdown table, the figure — and --plot redraws it from a saved bench.json."""
+    from benchmarks import engine_scaling
+
+    res = engine_scaling.run(log=lambda m: None, sizes=(8, 64), brute_max=8, out_dir=tmp_path)
+    rows = res["rows"]
+    assert [r["N"] for r in rows] == [8, 64] and all(r["grid_us"] > 0 for r in rows)
+    assert rows[0]["brute_us"] > 0 and rows[1]["brute_us"] is None
+    g = [r["grid_us"] for r in rows]
+    assert res["spread"] == max(g) / np.sqrt(max(g) * min(g)) - 1.0
+    assert "| 64 |" in res["markdown"] and (tmp_path / "engine_scaling.png").stat().st_size > 10_000
+    (tmp_path / "bench.json").write_text(json.dumps({"engine_scaling": res}))
+    engine_scaling.main(["--plot", str(tmp_path / "bench.json"), str(tmp_path / "again.png")])
+    assert (tmp_path / "again.png").stat().st_size > 10_000
