@@ -20,6 +20,7 @@ import math
 import time
 from pathlib import Path
 
+from benchmarks.plotting import loglog_figure
 from benchmarks.workloads import finken_config
 
 AREA_PER_COPTER = 12.0 / 10  # m², the SwarmLab with 10 copters
@@ -57,35 +58,19 @@ def spread(costs) -> float:
 def figure(rows, path) -> Path | None:
     """Log-log figure of µs per copter-step against N (grid and brute force) with the ±30 % band of the target
     around the geometric mean of the grid column; rows as returned by :func:`run`. None without matplotlib."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return None
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     n = [r["N"] for r in rows]
     g = [r["grid_us"] for r in rows]
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    centre = math.sqrt(max(g) * min(g))
-    ax.axhspan(centre / 1.3, centre * 1.3, color="0.85", label="target: flat within ±30 %")
-    ax.plot(n, g, "o-", label="cell grid (on from 64 copters)")
     brute = [(r["N"], r["brute_us"]) for r in rows if r.get("brute_us")]
-    if brute:
-        ax.plot(*zip(*brute), "s--", label="brute force")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("copters N (arena grows with N: 1.2 m² per copter)")
-    ax.set_ylabel("µs per copter-step (one thread)")
-    ax.set_title("Full FINken workload in the engine against N")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+
+    def draw(ax):
+        centre = math.sqrt(max(g) * min(g))
+        ax.axhspan(centre / 1.3, centre * 1.3, color="0.85", label="target: flat within ±30 %")
+        ax.plot(n, g, "o-", label="cell grid (on from 64 copters)")
+        if brute:
+            ax.plot(*zip(*brute), "s--", label="brute force")
+
+    return loglog_figure(path, draw, "copters N (arena grows with N: 1.2 m² per copter)",
+                         "µs per copter-step (one thread)", "Full FINken workload in the engine against N", dpi=110)
 
 
 def run(log=print, sizes=BENCH_SIZES, brute_max=BENCH_BRUTE_MAX, out_dir=None) -> dict:

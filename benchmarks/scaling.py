@@ -32,6 +32,7 @@ from finkensim.kernels.cellgrid import build_env, grid_spec, query_env, raycast_
 from finkensim.kernels.cellgrid_batch import neighbour_counts
 from finkensim.kernels.geometry import ray_circle
 from finkensim.kernels.raycast import box_exit
+from benchmarks.plotting import loglog_figure
 
 AREA_PER_COPTER = 2.0  # m² per copter
 RANGE = 2.5  # m, ranging range
@@ -286,32 +287,17 @@ def _markdown(rows, spread, fig_path) -> str:
 
 
 def _figure(rows, path: Path):
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return None
-    path.parent.mkdir(parents=True, exist_ok=True)
     n = [r["N"] for r in rows]
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    for key, label, style in (("pairs_brute", f"pairs ≤ {RANGE} m, brute force", "o--"),
-                              ("pairs_grid", f"pairs ≤ {RANGE} m, cell grid", "o-"),
-                              ("sonar_brute", "4 sonar rays, brute force", "s--"),
-                              ("sonar_grid", "4 sonar rays, cell grid", "s-")):
-        ax.plot(n, [r[key + "_ns"] for r in rows], style, label=label)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("copters N (arena grows: 2 m² per copter)")
-    ax.set_ylabel("ns per copter-step (one thread)")
-    ax.set_title("Cost per copter-step at fixed density")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+
+    def draw(ax):
+        for key, label, style in (("pairs_brute", f"pairs ≤ {RANGE} m, brute force", "o--"),
+                                  ("pairs_grid", f"pairs ≤ {RANGE} m, cell grid", "o-"),
+                                  ("sonar_brute", "4 sonar rays, brute force", "s--"),
+                                  ("sonar_grid", "4 sonar rays, cell grid", "s-")):
+            ax.plot(n, [r[key + "_ns"] for r in rows], style, label=label)
+
+    return loglog_figure(path, draw, "copters N (arena grows: 2 m² per copter)", "ns per copter-step (one thread)",
+                         "Cost per copter-step at fixed density")
 
 
 if __name__ == "__main__":
