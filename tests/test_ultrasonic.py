@@ -654,3 +654,15 @@ def test_crosstalk_pretests_bulk_random():
         np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
         hits += int(np.isfinite(out[..., 0]).sum())
     assert hits > 1000  # many emitters actually heard
+
+
+def test_sonar_scalars_are_the_models_scalar_fields():
+    """sonar_scalars (compiled) keeps every scalar field of the SonarModel under its name and drops the arrays."""
+    from finkensim.sensors.sonar_model import SonarScalars, sonar_scalars
+    _, _, sp = setup(beam="cone", beam_rays=5)
+    sp = sp._replace(bias=0.07, range_scale=1.03, crosstalk_hear_probability=0.5)
+    sc = sonar_scalars(sp)
+    assert isinstance(sc, SonarScalars)
+    assert set(SonarScalars._fields) == set(SonarModel._fields) - {"mount_yaw", "ray_angles"}
+    for f in SonarScalars._fields:
+        assert getattr(sc, f) == getattr(sp, f), f
