@@ -5,6 +5,7 @@ copters, default scenario sensors on (sonars with error model and cross-talk, GM
 cohesion task's reward included. env-steps/s = B · steps / time; copter-steps/s = N times that.
 
     python -m benchmarks.envs_bench            # prints the table alone
+    python -m benchmarks.envs_bench --split    # where one vector-env step's time goes (B = 1024)
 """
 from __future__ import annotations
 
@@ -84,8 +85,51 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(L) + "\n"
 
 
+def step_split(b: int = 1024, steps: int = 200) -> dict:
+    """ms per vector-env step (wall clock, all threads) and the parts of it: the compiled world + sensor step
+    (``Controlled.step``), the reward and the observation assembly; the rest is action clipping and Python."""
+    import time
+
+    import gymnasium
+
+    import finkensim.envs  # noqa: F401  (registers finkensim/Swarm-v0)
+
+    env = gymnasium.make_vec("finkensim/Swarm-v0", num_envs=b, scenario={"copters": {"n": ENV_N}}, max_steps=10**9)
+    env.reset(seed=0)
+    act = np.random.default_rng(0).uniform(-0.5, 0.5, size=env.action_space.shape).astype(np.float32)
+    for _ in range(20):  # compile; the copters reach the walls as in the throughput rows
+        env.step(act)
+    core = env.unwrapped.core
+    spent = {"compiled step": 0.0, "reward": 0.0, "observation": 0.0}
+
+    def timed(name, fn):
+        def wrapped(*args, **kwargs):
+            t0 = time.perf_counter()
+            out = fn(*args, **kwargs)
+            spent[name] += time.perf_counter() - t0
+            return out
+        return wrapped
+
+    core.ctl.step = timed("compiled step", core.ctl.step)
+    core.task.reward = timed("reward", core.task.reward)
+    core.observe = timed("observation", core.observe)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        env.step(act)
+    total = time.perf_counter() - t0
+    out = {"B": b, "env_steps_per_s": b * steps / total, "step_ms": 1e3 * total / steps}
+    out.update({f"{k}_ms": 1e3 * v / steps for k, v in spent.items()})
+    return out
+
+
 if __name__ == "__main__":
     import numba
 
-    rows = run(0.5, 3, lambda m: print(m, file=sys.stderr, flush=True), tuple(sorted({1, numba.get_num_threads()})))
-    print(markdown(rows))
+    if "--split" in sys.argv[1:]:
+        r = step_split()
+        print(f"vector env, N = {ENV_N}, B = {r['B']}: {r['env_steps_per_s']:,.0f} env-steps/s, {r['step_ms']:.2f} ms per "
+              f"step: compiled step {r['compiled step_ms']:.2f}, reward {r['reward_ms']:.2f}, observation "
+              f"{r['observation_ms']:.2f} ms (the rest: action clipping, Python)")
+    else:
+        rows = run(0.5, 3, lambda m: print(m, file=sys.stderr, flush=True), tuple(sorted({1, numba.get_num_threads()})))
+        print(markdown(rows))

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -80,3 +81,14 @@ def test_engine_scaling_measures_small_swarms_and_draws_the_figure(tmp_path):
     (tmp_path / "bench.json").write_text(json.dumps({"engine_scaling": res}))
     engine_scaling.main(["--plot", str(tmp_path / "bench.json"), str(tmp_path / "again.png")])
     assert (tmp_path / "again.png").stat().st_size > 10_000
+
+
+def test_vector_env_step_split_adds_up():
+    """benchmarks.envs_bench --split: the timed parts of a vector-env step are positive and within the step."""
+    pytest.importorskip("gymnasium")
+    from benchmarks.envs_bench import step_split
+
+    r = step_split(b=4, steps=3)
+    parts = [r["compiled step_ms"], r["reward_ms"], r["observation_ms"]]
+    assert all(p > 0 for p in parts) and sum(parts) <= r["step_ms"]
+    assert r["env_steps_per_s"] == pytest.approx(4 * 1e3 / r["step_ms"])
