@@ -29,7 +29,7 @@ Copter ``i`` measures its distance to every other copter and to every beacon. Fo
 **Modules.** :mod:`finkensim.sensors.mixture` holds the mixture (:class:`Mixture`, its files and
 analytic laws); :mod:`finkensim.sensors.ranging_table` the alias tables the ``mixture`` mode samples
 components from (:class:`ResponsibilityTable`, how exact they are); :mod:`finkensim.sensors.ranging_kernels`
-the numba kernels (the per-reading rule :func:`~finkensim.sensors.ranging_kernels.ranging_reading`,
+the numba kernels (the per-reading rule :func:`~finkensim.sensors.ranging_kernels.reading_rule`,
 one environment :func:`~finkensim.sensors.ranging_kernels.ranging_env`) and the random-number layout.
 This module builds the kernels' parameters and is the batched public API; it re-exports
 :class:`Mixture`, :class:`MixtureError`, :class:`ResponsibilityTable` and the ``MODE_*`` codes.

@@ -5,9 +5,8 @@ Every caller — the batched API (:func:`finkensim.sensors.ranging.ranging_readi
 with these functions, fed by the :class:`RangingParams` record (``RangingModel.params``):
 
 - :func:`reading_rule`: the whole rule for one reading of true distance x (out of range → exactly
-  ``max_range``; mode dispatch; clip at 0) on the unpacked fields of the record (:func:`ranging_reading` takes
-  the record itself, for single readings), built from :func:`fast_reading` (modes ``mixture``,
-  ``gaussian``, ``none``) and :func:`seed_reading` (mode ``seed``); :func:`pick_component` draws the
+  ``max_range``; mode dispatch; clip at 0) on the unpacked fields of the record, built from
+  :func:`fast_reading` (modes ``mixture``, ``gaussian``, ``none``) and :func:`seed_reading` (mode ``seed``); :func:`pick_component` draws the
   mixture component from the responsibility table (:mod:`finkensim.sensors.ranging_table`);
 - :func:`ranging_env`: one environment's readings (N, N + M); :func:`ranging_grid_env` the same readings with
   the pairs in range found on the engine's cell grid (large swarms); :func:`ranging_batch` runs it over a
@@ -44,7 +43,7 @@ from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
     "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
-    "ranging_reach", "ranging_reading",
+    "ranging_reach",
     "reading_rule", "row_key", "sample_readings", "seed_reading", "COMP_MEAN", "COMP_SLOPE", "COMP_COND_MEAN",
     "COMP_COND_STD", "COMP_LOG_WN", "COMP_HALF_INV_COVAR", "COMP_SEED_STD",
 ]
@@ -181,13 +180,6 @@ def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
 
 
 @njit(cache=True, inline="always")
-def ranging_reading(x, key, j, p):
-    """:func:`reading_rule` with the fields of the :class:`RangingParams` ``p`` (for a single reading; loops
-    unpack ``p`` once and call :func:`reading_rule`)."""
-    return reading_rule(x, key, j, p.mode, p.max_range, p.sigma, p.inv_h, p.prob, p.alias, p.comp)
-
-
-@njit(cache=True, inline="always")
 def ranging_env(pos_b, beacons, seed, env, step, p, out):
     """Virtual-ranging readings of one environment → out (N, N + M) float64, m.
 
@@ -231,7 +223,7 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
     (:func:`~finkensim.kernels.cellgrid.env_grid`; the grid is rebuilt here). Copters farther than ``max_range``
     read exactly ``max_range`` without a random number, so the row is filled with it and only the copters the grid
     finds within max_range·(1 + 1e-9) (a superset of those the exact rule keeps: the test itself stays the one
-    in :func:`ranging_reading`, on the same sqrt(dx² + dy²)) are drawn; beacons as in :func:`ranging_env`.
+    in :func:`reading_rule`, on the same sqrt(dx² + dy²)) are drawn; beacons as in :func:`ranging_env`.
     """
     if not g.on:
         ranging_env(pos_b, beacons, seed, env, step, p, out)
@@ -281,7 +273,7 @@ def ranging_batch(positions, beacons, seed, env_ids, step, p, out):
 
 @njit(cache=True, parallel=True)
 def sample_readings(xs, key, p, out):
-    """out[j]: :func:`ranging_reading` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
+    """out[j]: :func:`reading_rule` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
     (in parallel: each column's random numbers depend on j alone)."""
     mode, max_range, sigma, inv_h, prob, alias, comp = p
     for j in prange(xs.shape[0]):
