@@ -73,16 +73,24 @@ def figure(rows, path) -> Path | None:
                          "µs per copter-step (one thread)", "Full FINken workload in the engine against N", dpi=110)
 
 
+def measure(sizes, brute_max, step_budget: int = 20_000, wall_check: str = "none"):
+    """Yield {N, grid_us, brute_us (None above ``brute_max``)} for each N of ``sizes``, as each is measured; each
+    timed rollout runs max(5, step_budget // N) steps."""
+    for n in sizes:
+        steps = max(5, step_budget // n)
+        g = us_per_copter_step(n, True, steps, wall_check)
+        b = us_per_copter_step(n, False, steps, wall_check) if n <= brute_max else None
+        yield dict(N=n, grid_us=g, brute_us=b)
+
+
 def run(log=print, sizes=BENCH_SIZES, brute_max=BENCH_BRUTE_MAX, out_dir=None) -> dict:
     """Rows {N, grid_us, brute_us or None}, the grid column's spread and a markdown table (for ``make bench``);
     with ``out_dir`` also the figure ``engine_scaling.png`` there (:func:`figure`)."""
     rows = []
-    for n in sizes:
-        steps = max(5, 20_000 // n)
-        g = us_per_copter_step(n, True, steps)
-        b = us_per_copter_step(n, False, steps) if n <= brute_max else None
-        rows.append(dict(N=n, grid_us=g, brute_us=b))
-        log(f"(d) engine scaling N={n:6d}  grid {g:7.2f} µs/copter-step" + (f"  brute {b:7.2f}" if b else ""))
+    for r in measure(sizes, brute_max):
+        rows.append(r)
+        g, b = r["grid_us"], r["brute_us"]
+        log(f"(d) engine scaling N={r['N']:6d}  grid {g:7.2f} µs/copter-step" + (f"  brute {b:7.2f}" if b else ""))
     sp = spread([r["grid_us"] for r in rows])
     L = ["## (d) The full FINken workload in the engine against N, lab density (benchmarks/engine_scaling.py)", "",
          "One environment, one thread; the arena grows with N (10 copters per 3 m × 4 m); the cell grid on from "
@@ -115,12 +123,10 @@ def main(argv=None) -> None:
     sizes = args.sizes or ([10, 64, 256] if args.quick else [10, 32, 64, 128, 256, 512, 1024, 2048, 4096])
     print(f"{'N':>6} {'grid µs/copter-step':>20} {'brute µs/copter-step':>21} {'brute/grid':>11}")
     costs = []
-    for n in sizes:
-        steps = max(5, (2_000 if args.quick else 20_000) // n)
-        g = us_per_copter_step(n, True, steps, args.wall_check)
+    for r in measure(sizes, args.brute_max, 2_000 if args.quick else 20_000, args.wall_check):
+        n, g, b = r["N"], r["grid_us"], r["brute_us"]
         costs.append(g)
-        if n <= args.brute_max:
-            b = us_per_copter_step(n, False, steps, args.wall_check)
+        if b is not None:
             print(f"{n:>6} {g:>20.2f} {b:>21.2f} {b / g:>11.2f}", flush=True)
         else:
             print(f"{n:>6} {g:>20.2f} {'':>21} {'':>11}", flush=True)

@@ -18,14 +18,19 @@ ENV_B = (1, 64, 1024)
 PZ_MAX_B = 64   # PettingZoo rows beyond this take minutes of Python looping for nothing new
 
 
-def _vector_runner(b: int):
+def _vector_env(b: int):
+    """(vector env of B swarms, reset with seed 0; one fixed random action for every step)."""
     import gymnasium
 
     import finkensim.envs  # noqa: F401  (registers finkensim/Swarm-v0)
 
     env = gymnasium.make_vec("finkensim/Swarm-v0", num_envs=b, scenario={"copters": {"n": ENV_N}}, max_steps=10**9)
     env.reset(seed=0)
-    act = np.random.default_rng(0).uniform(-0.5, 0.5, size=env.action_space.shape).astype(np.float32)
+    return env, np.random.default_rng(0).uniform(-0.5, 0.5, size=env.action_space.shape).astype(np.float32)
+
+
+def _vector_runner(b: int):
+    env, act = _vector_env(b)
 
     def run(T):
         for _ in range(T):
@@ -90,13 +95,7 @@ def step_split(b: int = 1024, steps: int = 200) -> dict:
     (``Controlled.step``), the reward and the observation assembly; the rest is action clipping and Python."""
     import time
 
-    import gymnasium
-
-    import finkensim.envs  # noqa: F401  (registers finkensim/Swarm-v0)
-
-    env = gymnasium.make_vec("finkensim/Swarm-v0", num_envs=b, scenario={"copters": {"n": ENV_N}}, max_steps=10**9)
-    env.reset(seed=0)
-    act = np.random.default_rng(0).uniform(-0.5, 0.5, size=env.action_space.shape).astype(np.float32)
+    env, act = _vector_env(b)
     for _ in range(20):  # compile; the copters reach the walls as in the throughput rows
         env.step(act)
     core = env.unwrapped.core
