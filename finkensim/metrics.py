@@ -140,10 +140,21 @@ def _wall_gap(pos, arena, radius) -> np.ndarray:
 # ------------------------------------------------------------------------------------------ metrics
 
 def cohesion(pose) -> np.ndarray:
-    """(B,) m: mean distance of a copter centre from the centroid of its environment's swarm."""
+    """(B,) m: mean distance of a copter centre from the centroid of its environment's swarm.
+
+    The centroid sums the copters in index order, one vectorised addition per copter: the order numpy's
+    ``mean(axis=2)`` takes on a C-ordered pose (same result, bit for bit), at a third of its time — the
+    cohesion task computes this at every step of B environments."""
     pos = _positions(pose)
-    centroid = pos.mean(axis=2, keepdims=True)
-    return np.linalg.norm(pos - centroid, axis=-1).mean(axis=(0, 2))
+    x, y = pos[..., 0], pos[..., 1]
+    N = pos.shape[2]
+    sx, sy = x[:, :, 0].copy(), y[:, :, 0].copy()
+    for n in range(1, N):
+        sx += x[:, :, n]
+        sy += y[:, :, n]
+    dx = x - (sx / N)[..., None]
+    dy = y - (sy / N)[..., None]
+    return np.sqrt(dx * dx + dy * dy).mean(axis=(0, 2))
 
 
 def nearest_neighbour(pose) -> np.ndarray:

@@ -129,6 +129,17 @@ def test_pose_block_is_the_true_pose():
     np.testing.assert_allclose(obs[:, -3:], env.core.state.world.pose[0], rtol=1e-6, atol=1e-6)
 
 
+def test_observation_is_the_readings_in_layout_order():
+    """sonar, ranging, IMU (acc x, y, gyro), pose — each reading rounded to float32, nothing else."""
+    env = SwarmVectorEnv(num_envs=2, scenario=SCEN, pose=True)
+    env.reset(seed=3)
+    core = env.core
+    r = core.ctl.sense(core.state.copy())
+    expected = np.concatenate([r.sonar, r.ranging, r.imu_acc, r.imu_gyro[..., None], core.state.world.pose], axis=-1)
+    assert [name for name, _ in core.layout] == ["sonar", "ranging", "imu", "pose"]
+    np.testing.assert_array_equal(core.observe(r), expected.astype(np.float32))
+
+
 def test_coverage_rewards_sum_to_the_coverage_metric():
     vec = SwarmVectorEnv(num_envs=2, scenario=SCEN, task="coverage", max_steps=30)
     vec.reset(seed=0)

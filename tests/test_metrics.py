@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.sparse.csgraph import connected_components
 
 from finkensim import metrics as M
@@ -36,6 +38,16 @@ def test_cohesion_known_values():
     assert cohesion(traj([(1, 1), (1, 3)], [(1, 1.5), (1, 2.5)])) == pytest.approx([0.75])
     # a single copter is its own centroid
     assert cohesion(traj([(1, 1)], [(2, 2)])) == pytest.approx([0.0])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 5), st.integers(1, 40), st.integers(0, 2**32 - 1), st.sampled_from([2, 3]))
+def test_cohesion_equals_the_numpy_formula_bit_for_bit(T, B, N, seed, width):
+    """cohesion's per-copter centroid sum is numpy's own order for a C-ordered pose (golden tables rely on it)."""
+    pose = np.random.default_rng(seed).uniform(-5.0, 5.0, size=(T, B, N, width))
+    pos = pose[..., :2]
+    expected = np.linalg.norm(pos - pos.mean(axis=2, keepdims=True), axis=-1).mean(axis=(0, 2))
+    assert np.array_equal(cohesion(pose), expected)
 
 
 def test_nearest_neighbour_known_values():

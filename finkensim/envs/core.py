@@ -140,10 +140,24 @@ class SwarmCore:
 
     def observe(self, r) -> np.ndarray:
         """(B, N, D) float32 observation from :class:`~finkensim.swarm.control.ControlReadings`."""
-        parts = {"sonar": lambda: r.sonar, "ranging": lambda: r.ranging,
-                 "imu": lambda: np.concatenate([r.imu_acc, r.imu_gyro[..., None]], axis=-1),
-                 "pose": lambda: self.state.world.pose}
-        return np.concatenate([parts[name]() for name, _ in self.layout], axis=-1).astype(np.float32)
+        B, N = r.sonar.shape[:2]
+        obs = np.empty((B, N, self.obs_dim), dtype=np.float32)
+        col = 0
+        for name, width in self.layout:  # written block by block (cast on assignment): no float64 temporaries
+            block = obs[..., col:col + width]
+            if name == "sonar":
+                block[...] = r.sonar
+            elif name == "ranging":
+                block[...] = r.ranging
+            elif name == "imu":
+                block[..., :2] = r.imu_acc
+                block[..., 2] = r.imu_gyro
+            else:
+                ws = self.state.world
+                block[..., :2] = ws.pos
+                block[..., 2] = ws.yaw
+            col += width
+        return obs
 
     # -- rendering --
 

@@ -42,6 +42,11 @@ _body_to_world_fn = njit(cache=True)(body_to_world_env.py_func)
 _step_fn = njit(cache=True)(step_env.py_func)
 
 
+#: the environments of a parallel step are split into this many runs, each with its own scratch arrays
+#: (enough to keep every thread busy; numba's ``prange`` splits the chunks among the threads)
+CHUNKS = 64
+
+
 class ControlReadings(NamedTuple):
     """What the copters sense after a controlled step (float64; a disabled sensor's array stays zero):
     sonar (B, N, 4) m (front, left, back, right); ranging (B, N, N + M) m; imu_acc (B, N, 2) m/s² body
@@ -70,19 +75,35 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
 
 
 @njit(cache=True)
-def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
-    """Environment b of :func:`control_step` (work buffers allocated here, outside the ``prange`` body)."""
-    N = w.pos.shape[1]
-    S = geo.plate_a.shape[0]
-    bufs = (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
-            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
+def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
+    """Environment b of :func:`control_step`; ``work`` = (:func:`_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
+    (no yaw-rate commands), dist_buf (S,), gap_buf (N,)): scratch arrays, reused from one environment to the next."""
+    bufs, cmd_v, cmd_w, dist_buf, gap_buf = work
     if run.n_steps == 1:
-        cmd_v = np.empty((N, 2))
         _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
-        _step_fn(w, b, cmd_v, np.zeros(N), cp, hp, geo, run.dt, np.empty(geo.seg_a.shape[0]), np.empty(N), grid,
-                 env_grid(grid, b))
+        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, env_grid(grid, b))
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
                geo, sp, rp, beacons, ip, bufs, grid)
+
+
+@njit(cache=True)
+def _work_buffers(N, S):
+    """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
+    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
+    return (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
+            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
+
+
+@njit(cache=True)
+def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
+    """Chunk c of n_chunks equal runs of environments of :func:`control_step`, with one set of scratch arrays
+    (allocating them per environment and step cost more than a tenth of a 10-copter step)."""
+    B = w.pos.shape[0]
+    N = w.pos.shape[1]
+    S = geo.plate_a.shape[0]
+    work = (_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N))
+    for b in range(c * B // n_chunks, (c + 1) * B // n_chunks):
+        _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work)
 
 
 @njit(cache=True, parallel=True)
@@ -91,8 +112,9 @@ def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, 
     headings into the world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate
     commands; then sense at step ``run.step0 + run.n_steps`` into ``obs`` (a :class:`ControlReadings`).
     ``w`` (WorldArrays) and ``bias`` (B, N, 3) change in place."""
-    for b in prange(w.pos.shape[0]):
-        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
+    n_chunks = min(w.pos.shape[0], CHUNKS)
+    for c in prange(n_chunks):
+        _control_chunk(np.int64(c), n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
 
 
 @njit(cache=True)
@@ -102,8 +124,7 @@ def control_step_serial(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacon
     Its own function on purpose, not ``njit(control_step.py_func)``: numba's on-disk cache files entries under
     the Python function, so a serial compilation of the same function shares the parallel one's cache entry and
     whichever compiled first was loaded for both — the vector env then ran on one thread from a warm cache."""
-    for b in range(w.pos.shape[0]):
-        _control_env(np.int64(b), w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
+    _control_chunk(0, 1, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
 
 
 #: batches with fewer copters in total than this run :data:`control_step_serial`
