@@ -174,21 +174,21 @@ def plate_bands(pa, pb, width, length):
 
 
 @njit(cache=True, inline="always")
-def _band_plates(ray, wall, pa, pb, t_end, eps, best):
-    """Nearest hit (min with ``best``) among the plates of one wall the ray can reach for t ∈ [0, t_end].
+def _band_cells(ray, wall, t_end, eps):
+    """(k0, k1): the pitch cells of one wall the ray can reach for t ∈ [0, t_end] (k1 < k0: none).
 
-    ray = (ox, oy, dx, dy, inv_dx, inv_dy); wall = (s0 first plate, n plates, ci wall-normal coordinate
-    index, sign, origin, inv_pitch, lo, hi band of the plate lines) — see :func:`cast_ray_culled`.
+    ray = (ox, oy, dx, dy, inv_dx, inv_dy); wall = (n plates, ci wall-normal coordinate index, sign, origin,
+    inv_pitch, lo, hi band of the plate lines) — see :func:`cast_ray_culled`.
     """
     ox, oy, dx, dy, inv_dx, inv_dy = ray
-    s0, n, ci, sign, origin, inv_pitch, lo, hi = wall
+    n, ci, sign, origin, inv_pitch, lo, hi = wall
     if ci == 1:
         oc, dc, ou, du, inv = oy, dy, ox, dx, inv_dy
     else:
         oc, dc, ou, du, inv = ox, dx, oy, dy, inv_dx
     if inv == 0.0:  # parallel to the wall (or |d| < 1e-200: moves < eps along the normal before t_end)
         if oc < lo - eps or oc > hi + eps:
-            return best
+            return 0, -1
         t0 = 0.0
         t1 = t_end
     else:
@@ -197,64 +197,69 @@ def _band_plates(ray, wall, pa, pb, t_end, eps, best):
         t0 = max(0.0, min(ta, tb))
         t1 = min(t_end, max(ta, tb))
         if not (t0 <= t1):
-            return best
+            return 0, -1
     ua = origin + sign * (ou + t0 * du)
     ub = origin + sign * (ou + t1 * du)
     f0 = math.floor((min(ua, ub) - 2.0 * eps) * inv_pitch)
     f1 = math.floor((max(ua, ub) + 2.0 * eps) * inv_pitch)
     if f1 < 0.0 or f0 > n - 1.0:
-        return best
-    k0 = 0 if f0 < 0.0 else int(f0)
-    k1 = n - 1 if f1 > n - 1.0 else int(f1)
-    for s in range(s0 + k0, s0 + k1 + 1):
-        t = ray_segment(ox, oy, dx, dy, pa[s, 0], pa[s, 1], pb[s, 0], pb[s, 1])
-        if t < best:
-            best = t
-    return best
+        return 0, -1
+    return 0 if f0 < 0.0 else int(f0), n - 1 if f1 > n - 1.0 else int(f1)
 
 
-# the full search as a called function: the rare fallback of cast_ray_culled, not inlined there
-_cast_ray_fn = njit(cache=True)(cast_ray.py_func)
+@njit(cache=True, inline="always")
+def _wall_run(w, fast, S, ray, bands, width, length, t_end, eps):
+    """(first, last) plate index of run w of :func:`cast_ray_culled`: the cells wall w's band allows (``fast``),
+    else every plate (one run)."""
+    if not fast:
+        return 0, S - 1
+    ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w = bands
+    n = S // 4
+    if w == 0:  # south, east, north, west: plates in increasing index order
+        wall = (n, 1, 1.0, 0.0, n / width, lo_s, hi_s)
+    elif w == 1:
+        wall = (n, 0, 1.0, 0.0, n / length, lo_e, hi_e)
+    elif w == 2:
+        wall = (n, 1, -1.0, width, n / width, lo_n, hi_n)
+    else:
+        wall = (n, 0, -1.0, length, n / length, lo_w, hi_w)
+    k0, k1 = _band_cells(ray, wall, t_end, eps)
+    return w * n + k0, w * n + k1
 
 
 @njit(cache=True, inline="always")
 def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands, cand, n_cand):
     """:func:`cast_ray` testing only the plates the ray can reach before the net (same result, bit for bit).
 
-    ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step.
-    (Kept small for numba's IR-level inlining — one band test in a loop over the walls, one fallback call
-    site — and :func:`plate_bands` is not inlined: each inlined copy costs seconds of cold compile time.)
+    ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step. When the
+    layout or the ray does not allow culling, every plate is tested, as in :func:`cast_ray`.
+
+    One path through the arrays (the plate runs, then the copters): with a separate fallback path, numba (0.68,
+    whose O3 pipeline merges the reference-count decrements of the two paths before pruning them) kept an atomic
+    increment and decrement of each array argument per ray.
     """
-    ok, lo_s, hi_s, lo_e, hi_e, lo_n, hi_n, lo_w, hi_w = bands
+    ok = bands[0]
+    S = pa.shape[0]
+    t_box = box_exit(ox, oy, dx, dy, width, length)
     # a unit direction (the culling margins assume |d| = 1) from strictly inside the rectangle
     fast = (ok and 0.0 < ox < width and 0.0 < oy < length and abs(dx) < np.inf and abs(dy) < np.inf
-            and abs(dx) + abs(dy) > 0.5)
-    t_box = box_exit(ox, oy, dx, dy, width, length) if fast else np.inf
-    if not (t_box < np.inf):
-        return _cast_ray_fn(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, cand, n_cand)
-    n = pa.shape[0] // 4
+            and abs(dx) + abs(dy) > 0.5 and t_box < np.inf)
     eps = _cull_eps(width, length)
     t_end = t_box + eps
-    inv_w = n / width
-    inv_l = n / length
     # the band crossings only select plates (the distances come from ray_segment), so 1/d is fine here;
     # 0 marks a ray (numerically) parallel to the wall
     inv_dx = 1.0 / dx if abs(dx) >= 1e-200 else 0.0
     inv_dy = 1.0 / dy if abs(dy) >= 1e-200 else 0.0
+    ray = (ox, oy, dx, dy, inv_dx, inv_dy)
     best = np.inf
-    for w in range(4):  # south, east, north, west: plates in increasing index order
-        if w == 0:
-            ci, sign, origin, inv_p, lo, hi = 1, 1.0, 0.0, inv_w, lo_s, hi_s
-        elif w == 1:
-            ci, sign, origin, inv_p, lo, hi = 0, 1.0, 0.0, inv_l, lo_e, hi_e
-        elif w == 2:
-            ci, sign, origin, inv_p, lo, hi = 1, -1.0, width, inv_w, lo_n, hi_n
-        else:
-            ci, sign, origin, inv_p, lo, hi = 0, -1.0, length, inv_l, lo_w, hi_w
-        best = _band_plates((ox, oy, dx, dy, inv_dx, inv_dy), (w * n, n, ci, sign, origin, inv_p, lo, hi), pa, pb,
-                            t_end, eps, best)
-    kind = HIT_WALL  # a plate or the net (t_box is finite)
-    if t_box < best:
+    for w in range(4 if fast else 1):
+        first, last = _wall_run(w, fast, S, ray, bands, width, length, t_end, eps)
+        for s in range(first, last + 1):
+            t = ray_segment(ox, oy, dx, dy, pa[s, 0], pa[s, 1], pb[s, 0], pb[s, 1])
+            if t < best:
+                best = t
+    if t_box < best:  # the net
         best = t_box
+    # a plate or the net when anything was hit (culled: the net always is)
+    kind = HIT_WALL if best < np.inf else HIT_NONE
     return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
-

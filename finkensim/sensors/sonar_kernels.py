@@ -125,15 +125,21 @@ def sonar_hit(n, k, psi, pos_b, pa, pb, width, length, sp, rays, sonar_buf, band
 def store_ideal(n, k, best, bkind, hx, hy, max_range, sonar_buf, dist, kind, hit):
     """The ideal reading of sonar k of copter n from its :func:`sonar_hit` (best, bkind, hx, hy) into dist[n, k],
     kind[n, k], hit[n, k] (as :func:`ideal_env`: beyond ``max_range`` m reads max_range, HIT_NONE)."""
+    # every array is read or written on every path (the branches choose numbers): see cast_ray_culled on why
+    ox = sonar_buf[n, k, 0]
+    oy = sonar_buf[n, k, 1]
+    dx = sonar_buf[n, k, 2]
+    dy = sonar_buf[n, k, 3]
+    d = best
+    kd = bkind
     if best > max_range:
-        dist[n, k] = max_range
-        kind[n, k] = HIT_NONE
+        d = max_range
+        kd = HIT_NONE
         if not np.isfinite(best):
-            hx = sonar_buf[n, k, 0] + max_range * sonar_buf[n, k, 2]
-            hy = sonar_buf[n, k, 1] + max_range * sonar_buf[n, k, 3]
-    else:
-        dist[n, k] = best
-        kind[n, k] = bkind
+            hx = ox + max_range * dx
+            hy = oy + max_range * dy
+    dist[n, k] = d
+    kind[n, k] = kd
     hit[n, k, 0] = hx
     hit[n, k, 1] = hy
 

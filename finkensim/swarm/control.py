@@ -22,25 +22,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..behaviours.attraction import body_to_world_env
-from ..sensors.imu import imu_env
-from ..sensors.ranging_kernels import ranging_grid_env
-from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, ultrasonic_env
+from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid
-from ..world import step_env
+# the closed loop's compiled twins of the per-environment kernels: the same compilations
+from .kernel import _body_to_world_fn, _imu_fn, _plates_fn, _ranging_fn, _sonar_fn, _step_fn
 from .state import RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
-
-# non-inlined compilations of the inline per-environment kernels (as in swarm/kernel.py: same functions,
-# identical results, a fraction of the compile time)
-_plates_fn = njit(cache=True)(displaced_plates_env.py_func)
-_sonar_fn = njit(cache=True)(ultrasonic_env.py_func)
-_ranging_fn = njit(cache=True)(ranging_grid_env.py_func)
-_imu_fn = njit(cache=True)(imu_env.py_func)
-_body_to_world_fn = njit(cache=True)(body_to_world_env.py_func)
-_step_fn = njit(cache=True)(step_env.py_func)
-
 
 #: the environments of a parallel step are split into this many runs, each with its own scratch arrays
 #: (enough to keep every thread busy; numba's ``prange`` splits the chunks among the threads)
