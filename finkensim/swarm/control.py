@@ -46,7 +46,7 @@ class ControlReadings(NamedTuple):
     imu_gyro: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs, grid):
     """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances)."""
     pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
@@ -62,7 +62,7 @@ def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons,
         _imu_fn(w.acc[b], w.yaw[b], w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
     """Environment b of :func:`control_step`; ``work`` = (:func:`_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
     (no yaw-rate commands), dist_buf (S,), gap_buf (N,)): scratch arrays, reused from one environment to the next."""
@@ -82,7 +82,7 @@ def _work_buffers(N, S):
             np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """Chunk c of n_chunks equal runs of environments of :func:`control_step`, with one set of scratch arrays
     (allocating them per environment and step cost more than a tenth of a 10-copter step)."""
