@@ -127,7 +127,7 @@ def pick_components(xs, key, inv_h, prob, alias, out):
         out[j] = pick_component(xs[j], uniform(key, 4 * j), uniform(key, 4 * j + 1), inv_h, prob, alias)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def seed_reading(x, key, j, comp):
     """``seed`` mode, before clipping, m: exact responsibilities at true distance x m, one normal per
     component (``normal(key, j·K + i)``), the responsibility-weighted sum. ``comp`` (K, 7) as in
