@@ -74,10 +74,10 @@ class RangingParams(NamedTuple):
     Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = p``) and call
     :func:`reading_rule`: numba does not always elide the reference counting of arrays handed to an inlined
     function, and each count is an atomic increment and decrement. With the record passed per reading (and a
-    compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading; unpacked, one array
-    (``comp``, for that call) is still counted per reading (seen by sampling the callers of ``NRT_incref`` under
-    gdb). Inlining :func:`seed_reading` as well removes it, but saved only ≈ 0.2 µs per environment-step of
-    10 copters and cost 1.7 s more cold compilation, so it stays a call.
+    compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading. The compiled twins that
+    run these loops (``error_model="numpy"``, see :mod:`finkensim.swarm.kernel`) and an inlined
+    :func:`seed_reading` leave no count per reading (seen by sampling the callers of ``NRT_incref`` under gdb);
+    inlining ``seed_reading`` costs ≈ 1.5 s of cold compile of ``ranging_grid_env``.
     """
 
     mode: np.int64

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..sensors.ultrasonic import N_SONARS
-from ..kernels.cellgrid import engine_grid, env_grid
+from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
 from .kernel import _body_to_world_fn, _imu_fn, _plates_fn, _ranging_fn, _sonar_fn, _step_fn
 from .state import RunSpec, SwarmState
@@ -47,31 +47,38 @@ class ControlReadings(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs, grid):
-    """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances)."""
+def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs, grid, grid_b):
+    """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances); grid_b: its
+    grid buffers."""
     pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
     seed = run.seed
     env = run.env_ids[b]
+    pos_b = w.pos[b]
+    yaw_b = w.yaw[b]
     if run.do_sonar:
         _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-        _sonar_fn(w.pos[b], w.yaw[b], pa, pb, geo.width, geo.length, sp, seed, env, k,
-                  (sonar_buf, dist, hit_kind, hit, slot), son[b], grid, env_grid(grid, b))
+        _sonar_fn(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
+                  (sonar_buf, dist, hit_kind, hit, slot), son[b], grid, grid_b)
     if run.do_ranging:
-        _ranging_fn(w.pos[b], beacons, seed, env, k, rp, rng[b], grid, env_grid(grid, b))
+        _ranging_fn(pos_b, beacons, seed, env, k, rp, rng[b], grid, grid_b)
     if run.do_imu:
-        _imu_fn(w.acc[b], w.yaw[b], w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
+        _imu_fn(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
 
 
 @njit(cache=True, inline="always")
 def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
     """Environment b of :func:`control_step`; ``work`` = (:func:`_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
-    (no yaw-rate commands), dist_buf (S,), gap_buf (N,)): scratch arrays, reused from one environment to the next."""
-    bufs, cmd_v, cmd_w, dist_buf, gap_buf = work
+    (no yaw-rate commands), dist_buf (S,), gap_buf (N,), the chunk's own empty grid buffers): scratch arrays, reused
+    from one environment to the next."""
+    bufs, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
+    # with the grid off, the chunk's own empty buffers: env_grid's views of the shared ones would be counted by
+    # both threads on one reference count (an atomic on a contended cache line, per call)
+    grid_b = env_grid(grid, b) if grid.on else no_grid
     if run.n_steps == 1:
         _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
-        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, env_grid(grid, b))
+        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
-               geo, sp, rp, beacons, ip, bufs, grid)
+               geo, sp, rp, beacons, ip, bufs, grid, grid_b)
 
 
 @njit(cache=True)
@@ -89,7 +96,8 @@ def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp
     B = w.pos.shape[0]
     N = w.pos.shape[1]
     S = geo.plate_a.shape[0]
-    work = (_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N))
+    work = (_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N),
+            no_grid_buffers())
     for b in range(c * B // n_chunks, (c + 1) * B // n_chunks):
         _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work)
 
