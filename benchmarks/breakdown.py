@@ -1,7 +1,8 @@
 """Where the time of the full FINken step goes: ``python -m benchmarks.breakdown [--n 10 100]``.
 
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
-B environments, ``time.thread_time``, best of 5), on states taken from a real run (the swarm after
+B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's twins of the
+kernels, see :mod:`finkensim.swarm.kernel`), on states taken from a real run (the swarm after
 100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum. Not part of ``make bench``; numbers for
 the reply / issue, and a check after optimising a kernel.
 """
@@ -23,7 +24,7 @@ from finkensim.kernels.cellgrid import engine_grid, env_grid
 from finkensim.world import step_env
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_world(w, cp, hp, geo, dt, grid, reps):
     B, N, _ = w.pos.shape
     dist_buf = np.empty(geo.seg_a.shape[0])
@@ -38,7 +39,7 @@ def t_world(w, cp, hp, geo, dt, grid, reps):
             step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap, grid, env_grid(grid, b))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_nearest(pos, seg_a, seg_b, radius, cutoff, reps):
     out = np.empty(seg_a.shape[0])
     for _ in range(reps):
@@ -46,7 +47,7 @@ def t_nearest(pos, seg_a, seg_b, radius, cutoff, reps):
             nearest_body_distance_within_env(seg_a, seg_b, pos[b], radius, cutoff, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_hinges(theta, omega, integ, dist, hp, lever, dt, reps):
     th = theta.copy()
     om = omega.copy()
@@ -60,7 +61,7 @@ def t_hinges(theta, omega, integ, dist, hp, lever, dt, reps):
             walls_step_env(th[b], om[b], ig[b], dist[b], hp, lever, dt)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp, g, seed, reps, ideal_only):
     B, N, _ = pos.shape
     S = plate_a.shape[0]
@@ -82,7 +83,7 @@ def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp,
                                g, env_grid(g, 0))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_down(B, N, sp, seed, reps):
     alt = np.full(N, sp.altitude)
     out = np.empty(N)
@@ -91,7 +92,7 @@ def t_down(B, N, sp, seed, reps):
             down_env(alt, sp, seed, b, r, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_ranging(pos, seed, p, reps):
     B, n, _ = pos.shape
     out = np.empty((n, n))
@@ -101,7 +102,7 @@ def t_ranging(pos, seed, p, reps):
             ranging_env(pos[b], beacons, seed, b, r, p, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def t_imu(acc, yaw, yaw_rate, bias, ip, seed, reps):
     B, N, _ = acc.shape
     oa = np.empty((N, 2))
