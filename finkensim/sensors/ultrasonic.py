@@ -97,6 +97,7 @@ from numba import njit, prange
 from ..config import ConfigError
 from ..kernels.cellgrid import NO_GRID, no_grid_buffers
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
+from ..kernels.twin import twin
 from .sonar_kernels import (crosstalk_path, displaced_plates_env, down_env, echo_reading, fire_slot, fire_slots_env,
                             ideal_env, measured_reading, shifted_plates_env, sonar_hit, sonar_poses_env,
                             ultrasonic_env)
@@ -121,12 +122,12 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # batched kernels
 
-# Batched kernels call non-inlined twins of the per-environment kernels: the same code, compiled once
-# as a function (its helpers inlined into it) instead of being inlined into every prange body, which
+# Batched kernels call non-inlined twins of the per-environment kernels (finkensim.kernels.twin): the same code,
+# compiled once as a function (its helpers inlined into it) instead of being inlined into every prange body, which
 # keeps numba's parallel-loop compilation short.
-_ideal_env_fn = njit(cache=True)(ideal_env.py_func)
-_ultrasonic_env_fn = njit(cache=True)(ultrasonic_env.py_func)
-_down_env_fn = njit(cache=True)(down_env.py_func)
+_ideal_env_fn = twin(ideal_env)
+_ultrasonic_env_fn = twin(ultrasonic_env)
+_down_env_fn = twin(down_env)
 
 
 @njit(cache=True, parallel=True)

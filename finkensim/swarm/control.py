@@ -25,7 +25,7 @@ from numba import njit, prange
 from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import _body_to_world_fn, _imu_fn, _plates_fn, _ranging_fn, _sonar_fn, _step_fn
+from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, step_twin
 from .state import RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
@@ -47,22 +47,22 @@ class ControlReadings(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _sense_env(b, k, w, bias, run, son, rng, imu_a, imu_g, geo, sp, rp, beacons, ip, bufs, grid, grid_b):
-    """Sensors of environment b at step k → son[b], rng[b], imu_a[b], imu_g[b] (IMU bias advances); grid_b: its
-    grid buffers."""
+def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b):
+    """Sensors of environment b at step k → environment b of ``obs`` (a :class:`ControlReadings`; the IMU bias
+    advances); grid_b: its grid buffers."""
     pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
     seed = run.seed
     env = run.env_ids[b]
     pos_b = w.pos[b]
     yaw_b = w.yaw[b]
     if run.do_sonar:
-        _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-        _sonar_fn(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
-                  (sonar_buf, dist, hit_kind, hit, slot), son[b], grid, grid_b)
+        plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+        sonar_twin(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
+                  (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
     if run.do_ranging:
-        _ranging_fn(pos_b, beacons, seed, env, k, rp, rng[b], grid, grid_b)
+        ranging_twin(pos_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b)
     if run.do_imu:
-        _imu_fn(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, imu_a[b], imu_g[b])
+        imu_twin(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, obs.imu_acc[b], obs.imu_gyro[b])
 
 
 @njit(cache=True, inline="always")
@@ -75,16 +75,16 @@ def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, i
     # both threads on one reference count (an atomic on a contended cache line, per call)
     grid_b = env_grid(grid, b) if grid.on else no_grid
     if run.n_steps == 1:
-        _body_to_world_fn(w.yaw[b], cmd_body[b], cmd_v)
-        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
-    _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs.sonar, obs.ranging, obs.imu_acc, obs.imu_gyro,
-               geo, sp, rp, beacons, ip, bufs, grid, grid_b)
+        body_to_world_twin(w.yaw[b], cmd_body[b], cmd_v)
+        step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
+    _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b)
 
 
 @njit(cache=True)
 def _work_buffers(N, S):
     """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
-    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
+    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of
+    :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
     return (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
             np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
 

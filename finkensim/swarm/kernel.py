@@ -28,35 +28,25 @@ from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
+from ..kernels.twin import twin
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
 __all__ = ["swarm_env", "swarm_rollout"]
 
 
-def _twin(kernel):
-    """A non-inlined twin of an ``inline="always"`` per-environment kernel: the same Python function compiled
-    once as a function. Identical results; the rollout kernel that calls twins compiles in a fraction of the
-    time it takes with everything inlined (numba's IR inlining and type inference grow steeply with size).
-
-    ``error_model="numpy"``: a float division by zero gives inf/NaN instead of raising (the kernels never divide
-    by zero on valid input; the results are the same). The raise paths of Python's model are what kept numba
-    0.68 from pruning the reference counting of the arrays handed to the inlined per-ray functions: an atomic
-    increment and decrement of each, for every sonar reading (≈ 10 % of a sonar step)."""
-    return njit(cache=True, error_model="numpy")(kernel.py_func)
-
-
-_plates_fn = _twin(displaced_plates_env)
-_sonar_fn = _twin(ultrasonic_env)
-_down_fn = _twin(down_env)
-_ranging_fn = _twin(ranging_grid_env)
-_imu_fn = _twin(imu_env)
-_dead_reckon_fn = _twin(dead_reckon_env)
-_wall_check_fn = _twin(wall_check_env)
-_attraction_fn = _twin(attraction_env)
-_body_to_world_fn = _twin(body_to_world_env)
-_random_walk_fn = _twin(random_walk_env)
-_step_fn = _twin(step_env)
+# the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
+plates_twin = twin(displaced_plates_env)
+sonar_twin = twin(ultrasonic_env)
+down_twin = twin(down_env)
+ranging_twin = twin(ranging_grid_env)
+imu_twin = twin(imu_env)
+dead_reckon_twin = twin(dead_reckon_env)
+wall_check_twin = twin(wall_check_env)
+attraction_twin = twin(attraction_env)
+body_to_world_twin = twin(body_to_world_env)
+random_walk_twin = twin(random_walk_env)
+step_twin = twin(step_env)
 
 
 @njit(cache=True)
@@ -161,28 +151,28 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         _record_state(t, b, w, rec)
         # 1. sense
         if run.do_sonar:
-            _plates_fn(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-            _sonar_fn(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
+            plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+            sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
                       son, grid, grid_b)
         if run.do_down:
-            _down_fn(alt, sp, seed, env, k, down)
+            down_twin(alt, sp, seed, env, k, down)
         if run.do_ranging:
-            _ranging_fn(pos, beacons, seed, env, k, rp, rng, grid, grid_b)
+            ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b)
         if run.do_imu:
-            _imu_fn(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
-            _dead_reckon_fn(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
+            imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
+            dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
         # 2. behave
         if run.do_sonar:
-            _wall_check_fn(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
+            wall_check_twin(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
                            mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b], (pos, grid, grid_b, near_on))
         if run.kind == KIND_ATTRACTION:
-            _attraction_fn(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
-            _body_to_world_fn(yaw, cmd_body, cmd_v)
+            attraction_twin(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
+            body_to_world_twin(yaw, cmd_body, cmd_v)
         elif run.kind == KIND_RANDOM_WALK:
-            _random_walk_fn(pos, seed, env, k, rw, cmd_v, cmd_w)
+            random_walk_twin(pos, seed, env, k, rw, cmd_v, cmd_w)
         _record_step(t, b, rec, son, dist, hit_kind, mem.wall[b], down, rng, imu_a, imu_g, cmd_v, cmd_w)
         # 3. step
-        _step_fn(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
+        step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
 
 
 @njit(cache=True, parallel=True)
