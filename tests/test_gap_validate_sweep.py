@@ -132,6 +132,7 @@ def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):
     assert [json.loads(x)["seed"] for x in (tmp_path / "trials.jsonl").read_text().splitlines()[:4]] == [5, 5, 6, 6]
     _, md = confusion(rows)
     assert "Wilson" in md and "| null | 3 | 100% (44%–100%) |" in md
+    assert "| **all 2 cases** | 6 | 100.0% (61.0%–100.0%) |" in md  # the pooled row: 6 of 6, Wilson
     assert "| null | 3 | 100% (44%–100%) |" in validate_sweep.summarize(tmp_path)  # a run so far, from its file
 
 

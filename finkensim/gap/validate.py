@@ -398,8 +398,8 @@ def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
 
 
 def confusion(rows: list[dict]):
-    """Per-case summary (with Wilson 95 % intervals) and confusion matrix (true case × verdict) as a
-    DataFrame and Markdown."""
+    """Per-case summary (with Wilson 95 % intervals; a last row pools every trial) and confusion matrix (true case ×
+    verdict) as a DataFrame and Markdown."""
     import pandas as pd
 
     df = pd.DataFrame(rows)
@@ -429,6 +429,13 @@ def confusion(rows: list[dict]):
         lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | {pct(r['flagged_none'])} | "
                      f"{pct(r['location_right'])} | {pe} | {r['shrink_mean']:.2f} / {r['shrink_max']:.2f} | "
                      f"{pct(r['correction_shrink'])} | {r['seconds_mean']:.0f} |")
+    n, k = len(df), int(df["correct"].sum())
+    lo, hi = wilson(k, n)
+    loc = df["location_ok"].dropna().astype(float)
+    lines.append(f"| **all {summary.shape[0]} cases** | {n} | {k / n:.1%} ({lo:.1%}–{hi:.1%}) | "
+                 f"{pct(float((df['flagged_locations'].fillna(0) == 0).mean()))} | "
+                 f"{pct(loc.mean() if len(loc) else float('nan'))} | | {df['shrink_heldout'].mean():.2f} / "
+                 f"{df['shrink_heldout'].max():.2f} | | {df['seconds'].mean():.0f} |")
     mat = pd.crosstab(df["case"], df["verdict"]).reindex(summary.index)
     lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict, the first effect named):", ""]
     cols = list(mat.columns)
