@@ -92,3 +92,25 @@ def test_vector_env_step_split_adds_up():
     parts = [r["compiled step_ms"], r["reward_ms"], r["observation_ms"]]
     assert all(p > 0 for p in parts) and sum(parts) <= r["step_ms"]
     assert r["env_steps_per_s"] == pytest.approx(4 * 1e3 / r["step_ms"])
+
+
+def test_perf_map_names_freshly_compiled_functions(tmp_path):
+    """benchmarks.perf_map: perf's map file lists a function numba just compiled, at its address, by its name."""
+    from numba import njit
+
+    from benchmarks.perf_map import compiled_functions, write_perf_map
+
+    @njit  # not cached: its module keeps the symbols
+    def perf_map_probe(x):
+        return x * 2.0 + 1.0
+
+    assert perf_map_probe(1.0) == 3.0
+    path = write_perf_map(tmp_path / "perf.map")
+    lines = [line.split() for line in path.read_text().splitlines()]
+    named = {name: (int(a, 16), int(s, 16)) for a, s, name in lines}
+    probe = [name for name in named if "perf_map_probe" in name]
+    assert probe, "the probe function is not in the map"
+    addr, size = named[probe[0]]
+    assert addr in compiled_functions() and size > 0
+    starts = sorted(a for a, _ in named.values())
+    assert all(a + s <= b for (a, s), b in zip(sorted(named.values()), starts[1:]))  # no overlaps
