@@ -135,7 +135,7 @@ class Trajectory:
     theta: np.ndarray
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
     """Advance environment b of the :class:`WorldArrays` ``w`` by dt s in place: copters move, contacts
     are counted, plates respond.

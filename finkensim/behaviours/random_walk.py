@@ -26,7 +26,7 @@ class RandomWalkParams(NamedTuple):
                    np.deg2rad(behaviour.yaw_rate_deg), width, length)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def random_walk_env(pos, seed, env_id, step, rw, cmd_v, cmd_w):
     """Commands for one environment. pos (N, 2) m → writes cmd_v (N, 2) m/s and cmd_w (N,) rad/s."""
     epoch = step // rw.redraw_steps

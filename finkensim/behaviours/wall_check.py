@@ -194,7 +194,7 @@ def per_reading_env(sonar_b, rng_b, wp, fail_out, near):
             fail_out[n, k] = reading_fails(sonar_b[n, k], rng_b[n], n, wp, grid[4], n_cand, N)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def dead_reckon_env(acc_b, gyro_b, dt, dr_pos, dr_vel, dr_yaw):
     """Advance the dead reckoning of one environment by one IMU sample, in place.
 
@@ -240,7 +240,7 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
                     onsets[n] += 1
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr_yaw, onsets, wall_readings, near):
     """The configured check (``wp.mode``) for one environment; updates the memory and the wall flags
     wall (N, 4) in place. fail_buf (N, 4) bool is a work buffer (left holding the per-reading result); near: as

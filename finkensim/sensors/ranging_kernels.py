@@ -215,7 +215,7 @@ def ranging_reach(max_range):
     return max_range * (1.0 + 1e-9) if max_range < 1e300 else np.inf
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid):
     """:func:`ranging_env` with the copter pairs found on a cell grid when ``g.on``: the same readings, bit for bit.
 

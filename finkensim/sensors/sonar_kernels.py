@@ -63,7 +63,7 @@ def shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, gain, pa_out, 
         pb_out[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_out):
     """Plate surfaces at flight height for one environment: theta_b (S,) rad → pa_out, pb_out (S, 2) m,
     each plate shifted along its inward normal by lever · sin θ (as ``Arena.plate_surfaces``)."""
@@ -321,7 +321,7 @@ def measured_reading(d, echo, path, key, k, sp):
     return clamp_reading(y, sp)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, work, out, g, grid):
     """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
 
@@ -350,7 +350,7 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # as its engine twin (swarm.kernel)
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def down_env(alt_b, sp, seed, env_id, step, out):
     """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
     sps = sonar_scalars(sp)

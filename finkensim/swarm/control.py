@@ -58,7 +58,7 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
     if run.do_sonar:
         plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
         sonar_twin(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
-                  (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
+                   (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
     if run.do_ranging:
         ranging_twin(pos_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b)
     if run.do_imu:
