@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from .config import ArenaConfig, WallConfig
-from .kernels.trig import sin_half_pi
+from .kernels.trig import sin_fast_array, sin_half_pi
 
 GRAVITY = 9.81  # m/s²
 
@@ -334,8 +334,9 @@ class Arena:
         return self.seg_a.shape[0]
 
     def displacement(self, theta):
-        """Inward displacement (m) of each plate surface at flight height: lever · sin θ. (..., S) → (..., S)."""
-        return self.lever * np.sin(theta)
+        """Inward displacement (m) of each plate surface at flight height: lever · sin θ. (..., S) → (..., S).
+        The sine of the sonar kernels (:func:`~finkensim.kernels.trig.sin_fast`)."""
+        return self.lever * sin_fast_array(np.asarray(theta, dtype=np.float64))
 
     def plate_surfaces(self, theta):
         """Plate surfaces at flight height as line segments the sensors see.

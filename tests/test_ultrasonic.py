@@ -666,3 +666,27 @@ def test_sonar_scalars_are_the_models_scalar_fields():
     assert set(SonarScalars._fields) == set(SonarModel._fields) - {"mount_yaw", "ray_angles"}
     for f in SonarScalars._fields:
         assert getattr(sc, f) == getattr(sp, f), f
+
+
+@settings(max_examples=200, deadline=None)
+@given(yaws=st.lists(st.one_of(st.floats(-4.0, 4.0), st.floats(-1e4, 1e4)), min_size=1, max_size=6),
+       mounts=st.lists(st.floats(-7.0, 7.0), min_size=4, max_size=4), offset=st.floats(0.0, 0.2))
+def test_sonar_headings_within_the_stated_bound_of_cos_sin_of_the_sum(yaws, mounts, offset):
+    """sonar_poses_env rotates each copter's (cos, sin) of its yaw by the mounts' (one sine and cosine per copter and
+    per mount): within 1e-15 + 2.3e-16·|yaw + mount| of (cos, sin) of the float sum, a unit vector to 1e-15, and the
+    origins offset along it."""
+    from finkensim.sensors.sonar_kernels import sonar_poses_env
+
+    _, _, sp = setup(n=len(yaws), offset=offset)
+    sp = sp._replace(mount_yaw=np.array(mounts))
+    yaw = np.array(yaws)
+    pos = np.random.default_rng(len(yaws)).uniform(0, 3, (yaw.size, 2))
+    buf = np.empty((yaw.size, 4, 4))
+    sonar_poses_env(pos, yaw, sp, buf)
+    psi = yaw[:, None] + np.array(mounts)[None, :]
+    bound = 1e-15 + 2.3e-16 * np.abs(psi)
+    assert np.all(np.abs(buf[..., 2] - np.cos(psi)) <= bound)
+    assert np.all(np.abs(buf[..., 3] - np.sin(psi)) <= bound)
+    assert np.all(np.abs(np.hypot(buf[..., 2], buf[..., 3]) - 1.0) <= 1e-15)
+    np.testing.assert_array_equal(buf[..., 0], pos[:, None, 0] + sp.offset * buf[..., 2])
+    np.testing.assert_array_equal(buf[..., 1], pos[:, None, 1] + sp.offset * buf[..., 3])

@@ -28,6 +28,7 @@ from ..flightlog.messages import plural
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
+from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
                                      sonar_poses_env, store_ideal)
 from ..sensors.sonar_model import SonarModel, WallGeometry, sonar_scalars, wall_geometry
@@ -308,7 +309,7 @@ def _sonar_context(P2, yaw_k, theta_k, w, pa, pb, sp, n, s, t_, hk, hx, hy, out)
         d = point_segment_distance(hx, hy, pa[p, 0], pa[p, 1], pb[p, 0], pb[p, 1])
         if d < bd:
             bd = d
-            bs = w.lever * np.sin(theta_k[p])
+            bs = w.lever * sin_fast(theta_k[p])
     out[5] = bs
 
 

@@ -52,8 +52,9 @@ def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp):
 def crosstalk_paths(pos, yaw, mount_yaw, offset, max_range, cos_half):
     """Shortest mutual-view emitter→receiver path per (copter, sonar) at one time: (N, S), inf if none."""
     N, S = pos.shape[0], mount_yaw.size
-    psi = yaw[:, None] + mount_yaw[None, :]
-    u = np.stack([np.cos(psi), np.sin(psi)], -1)  # (N, S, 2)
+    cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    cm, sm = np.cos(mount_yaw)[None, :], np.sin(mount_yaw)[None, :]
+    u = np.stack([cy * cm - sy * sm, sy * cm + cy * sm], -1)  # (N, S, 2) headings, as the sonar kernel rotates them
     o = pos[:, None, :] + offset * u
     out = np.full((N, S), np.inf)
     for n in range(N):

@@ -84,13 +84,15 @@ def naive_cast(o, d, self_n, pos_b, radius, pa, pb, width, length):
 
 
 def naive_sonar_poses(pos_b, yaw_b, sp):
-    """(N, 4, 4): sonar x, y, cos(heading), sin(heading)."""
+    """(N, 4, 4): sonar x, y, cos(heading), sin(heading); the heading (cos, sin) is the yaw's rotated by the
+    mount's (the kernel's formula)."""
     N = pos_b.shape[0]
     out = np.empty((N, 4, 4))
     for n in range(N):
         for k in range(4):
-            psi = yaw_b[n] + sp.mount_yaw[k]
-            c, s = math.cos(psi), math.sin(psi)
+            cy, sy = math.cos(yaw_b[n]), math.sin(yaw_b[n])
+            cm, sm = math.cos(sp.mount_yaw[k]), math.sin(sp.mount_yaw[k])
+            c, s = cy * cm - sy * sm, sy * cm + cy * sm
             out[n, k] = (pos_b[n, 0] + sp.offset * c, pos_b[n, 1] + sp.offset * s, c, s)
     return out
 
@@ -117,8 +119,9 @@ def _naive_ideal_loop(pos, yaw, PA, PB, arena, sp, dist, kind, hit):
                 o = poses[n, k, :2]
                 psi = yaw[b][n] + sp.mount_yaw[k]
                 best, bk, h = math.inf, 0, (math.nan, math.nan)
+                along = len(sp.ray_angles) == 1 and sp.ray_angles[0] == 0.0  # one ray: the sonar's heading
                 for ang in sp.ray_angles:
-                    d = np.array([math.cos(psi + ang), math.sin(psi + ang)])
+                    d = poses[n, k, 2:].copy() if along else np.array([math.cos(psi + ang), math.sin(psi + ang)])
                     t, hk = naive_cast(o, d, n, pos[b], sp.radius, PA[b], PB[b], arena.width, arena.length)
                     if t < best:
                         best, bk, h = t, hk, (o[0] + t * d[0], o[1] + t * d[1])
