@@ -24,6 +24,7 @@ from numba import njit, prange
 
 from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
+from ..kernels.twin import INTERNAL
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
 from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, step_twin
 from .state import RunSpec, SwarmState
@@ -80,7 +81,7 @@ def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, i
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b)
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def _work_buffers(N, S):
     """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
     hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of
@@ -89,7 +90,7 @@ def _work_buffers(N, S):
             np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", **INTERNAL)
 def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """Chunk c of n_chunks equal runs of environments of :func:`control_step`, with one set of scratch arrays
     (allocating them per environment and step cost more than a tenth of a 10-copter step)."""

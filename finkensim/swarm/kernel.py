@@ -28,7 +28,7 @@ from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
-from ..kernels.twin import twin
+from ..kernels.twin import INTERNAL, twin
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
@@ -49,7 +49,7 @@ random_walk_twin = twin(random_walk_env)
 step_twin = twin(step_env)
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def _record_state(t, b, w, rec):
     """The state of environment b before step t → rec (pose, vel, acc, yaw_rate, theta) where recorded."""
     N = w.pos.shape[1]
@@ -75,7 +75,7 @@ def _record_state(t, b, w, rec):
             rec.theta[t, b, s] = w.theta[b, s]
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g, cmd_v, cmd_w):
     """What environment b sensed and commanded at step t → rec, where recorded. son, dist (N, 4) m,
     hit_kind (N, 4), wall_b (N, 4) bool, down (N,) m, rng (N, N + M) m, imu_a (N, 2), imu_g (N,), cmd_v
@@ -107,7 +107,7 @@ def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g
             rec.cmd_yaw_rate[t, b, n] = cmd_w[n]
 
 
-@njit(cache=True)
+@njit(cache=True, **INTERNAL)
 def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
     """``run.n_steps`` steps of the closed loop for environment b, in place (the body of
     :func:`swarm_rollout`'s ``prange`` loop). Each step k: 1. sense (sonars on the plates displaced by
