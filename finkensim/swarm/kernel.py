@@ -133,8 +133,13 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
     alt = np.full(N, sp.altitude)
     down = np.empty(N)
     # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which reads
-    # zeros with the ranging off): 800 MB per environment at N = 10 000
-    rng = np.zeros((N, R)) if run.do_ranging or (run.do_sonar and wp.mode != WALL_CHECK_NONE) else np.zeros((N, 0))
+    # zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry read is
+    # written first at each step (all of them, or those in range: see `fill` below), so the rows need no zeroing —
+    # np.empty leaves the pages nobody writes untouched
+    if run.do_ranging:
+        rng = np.empty((N, R))
+    else:
+        rng = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
     imu_a = np.zeros((N, 2))
     imu_g = np.zeros(N)
     fail_buf = np.zeros((N, N_SONARS), dtype=np.bool_)
@@ -146,6 +151,9 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
     grid_b = env_grid(grid, b)
     # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
     near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
+    # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
+    # ranging row need not be written at every step
+    fill = rec.ranging.shape[0] > 0 or not near_on
     for t in range(run.n_steps):
         k = run.step0 + t
         _record_state(t, b, w, rec)
@@ -157,7 +165,7 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         if run.do_down:
             down_twin(alt, sp, seed, env, k, down)
         if run.do_ranging:
-            ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b)
+            ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
         if run.do_imu:
             imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
             dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
