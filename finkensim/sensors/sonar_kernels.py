@@ -363,6 +363,14 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
         if geometric and g.on:  # the grid ideal_env built
             n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start,
                                order, spos, found, found_d2)
+            # keep the copters firing in n's slot (the others crosstalk_path skips), once for n's S sonars
+            kept = 0
+            for c in range(n_cand):
+                m = found[c]
+                if slot[m] == slot[n]:
+                    found[kept] = m
+                    kept += 1
+            n_cand = kept
         for k in range(n_sonars):
             path = crosstalk_path(n, k, sonar_buf, slot, sps, found, n_cand) if geometric else np.inf
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
