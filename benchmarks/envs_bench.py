@@ -6,6 +6,7 @@ cohesion task's reward included. env-steps/s = B · steps / time; copter-steps/s
 
     python -m benchmarks.envs_bench            # prints the table alone
     python -m benchmarks.envs_bench --split    # where one vector-env step's time goes (B = 1024)
+    python -m benchmarks.envs_bench --sensors  # its compiled step, one thread, with each sensor switched on in turn
 """
 from __future__ import annotations
 
@@ -121,10 +122,54 @@ def step_split(b: int = 1024, steps: int = 200) -> dict:
     return out
 
 
+SENSOR_SETS = (("world step alone", ()), ("+ sonar", ("sonar",)), ("+ ranging", ("ranging",)), ("+ IMU", ("imu",)),
+               ("every sensor", ("sonar", "ranging", "imu")))
+
+
+def sensor_split(b: int = 1024, steps: int = 20, warm: int = 100) -> dict[str, float]:
+    """µs per env-step of the vector env's compiled step (``Controlled.step``, one thread, thread CPU time, best of 3)
+    with the world step alone and with each sensor switched on (scenario ``enabled`` flags), N = 10, the benchmark's
+    fixed random actions after ``warm`` steps (the copters then sit at the walls, as in the throughput rows)."""
+    import time
+
+    import numba
+
+    from finkensim.envs.core import SwarmCore
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    out = {}
+    try:
+        for label, on in SENSOR_SETS:
+            sc = {"copters": {"n": ENV_N}, **{k: {"enabled": k in on} for k in ("sonar", "ranging", "imu")}}
+            core = SwarmCore(sc, n_envs=b, max_steps=10**9, pose=not on)
+            core.set_seeds(0, None)
+            core.reset()
+            act = np.random.default_rng(0).uniform(-0.5, 0.5, size=(b, ENV_N, 2))
+            for _ in range(warm):
+                core.state, _ = core.ctl.step(core.state, act)
+            best = np.inf
+            for _ in range(3):
+                t0 = time.thread_time()
+                for _ in range(steps):
+                    core.state, _ = core.ctl.step(core.state, act)
+                best = min(best, (time.thread_time() - t0) / (steps * b) * 1e6)
+            out[label] = best
+    finally:
+        numba.set_num_threads(before)
+    return out
+
+
 if __name__ == "__main__":
     import numba
 
-    if "--split" in sys.argv[1:]:
+    if "--sensors" in sys.argv[1:]:
+        r = sensor_split()
+        base = r["world step alone"]
+        for label, us in r.items():
+            extra = f"  ({us - base:+.2f})" if label.startswith("+") else ""
+            print(f"{label:18s} {us:6.2f} µs per env-step{extra}   (compiled step, one thread, N = {ENV_N}, B = 1024)")
+    elif "--split" in sys.argv[1:]:
         r = step_split()
         print(f"vector env, N = {ENV_N}, B = {r['B']}: {r['env_steps_per_s']:,.0f} env-steps/s, {r['step_ms']:.2f} ms per "
               f"step: compiled step {r['compiled step_ms']:.2f}, reward {r['reward_ms']:.2f}, observation "

@@ -94,6 +94,19 @@ def test_vector_env_step_split_adds_up():
     assert r["env_steps_per_s"] == pytest.approx(4 * 1e3 / r["step_ms"])
 
 
+def test_vector_env_sensor_split_times_each_sensor_set():
+    """benchmarks.envs_bench --sensors: one positive time per sensor set, and the numba thread count is restored."""
+    import numba
+
+    from benchmarks.envs_bench import SENSOR_SETS, sensor_split
+
+    threads = numba.get_num_threads()
+    r = sensor_split(b=3, steps=1, warm=1)
+    assert list(r) == [label for label, _ in SENSOR_SETS]
+    assert all(v > 0 for v in r.values())
+    assert numba.get_num_threads() == threads
+
+
 def test_perf_map_names_freshly_compiled_functions(tmp_path):
     """benchmarks.perf_map: perf's map file lists a function numba just compiled, at its address, by its name."""
     from numba import njit
