@@ -131,7 +131,8 @@ PARALLEL_MIN_COPTERS = 512
 class Controlled:
     """Batched externally commanded stepping of a :class:`~finkensim.swarm.SwarmSim`'s world and sensors.
 
-    The state's arrays change in place (the envs own their state); the returned readings are fresh arrays.
+    The state's arrays change in place (the envs own their state); the returned readings are fresh arrays
+    unless ``out`` is given.
     The behaviour, its wall check and dead reckoning do not run (the commands replace them).
     """
 
@@ -146,12 +147,21 @@ class Controlled:
             self._grid = (B, engine_grid(self.sim.world.grid, B, N))
         return self._grid[1]
 
-    def _run(self, state: SwarmState, cmd_body, n_steps: int) -> ControlReadings:
+    def readings(self, B: int, N: int) -> ControlReadings:
+        """Fresh readings arrays for B environments of N copters (a disabled sensor's stay at these values)."""
+        return ControlReadings(np.full((B, N, N_SONARS), self.sim.sonar.max_range), np.zeros((B, N, self.n_ranging)),
+                               np.zeros((B, N, 2)), np.zeros((B, N)))
+
+    def _run(self, state: SwarmState, cmd_body, n_steps: int, out: ControlReadings | None) -> ControlReadings:
         sim = self.sim
         ws = state.world
         B, N = ws.n_envs, ws.n_copters
-        obs = ControlReadings(np.full((B, N, N_SONARS), sim.sonar.max_range), np.zeros((B, N, self.n_ranging)),
-                              np.zeros((B, N, 2)), np.zeros((B, N)))
+        obs = self.readings(B, N) if out is None else out
+        want = ((B, N, N_SONARS), (B, N, self.n_ranging), (B, N, 2), (B, N))
+        if out is not None and (tuple(a.shape for a in out) != want
+                                or any(a.dtype != np.float64 or not a.flags.c_contiguous for a in out)):
+            raise ValueError(f"out has shapes {[a.shape for a in out]}: expected C-contiguous float64 arrays of shapes "
+                             f"{list(want)}, as Controlled.readings({B}, {N}) makes them")
         run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, 0, float(sim.dt), sim.enabled["sonar"],
                       False, sim.enabled["ranging"], sim.enabled["imu"])
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
@@ -163,14 +173,16 @@ class Controlled:
                      sim.sonar, sim.ranging.params, sim.beacons, sim.imu, self._grid_buffers(B, N))
         return obs
 
-    def sense(self, state: SwarmState) -> ControlReadings:
-        """Readings at the state's step (the IMU bias in ``state`` advances by one draw)."""
-        return self._run(state, None, 0)
+    def sense(self, state: SwarmState, out: ControlReadings | None = None) -> ControlReadings:
+        """Readings at the state's step (the IMU bias in ``state`` advances by one draw). ``out``: arrays from
+        :meth:`readings` to write them into (the enabled sensors' entries are all overwritten), else fresh ones."""
+        return self._run(state, None, 0, out)
 
-    def step(self, state: SwarmState, cmd_body) -> tuple[SwarmState, ControlReadings]:
+    def step(self, state: SwarmState, cmd_body, out: ControlReadings | None = None
+             ) -> tuple[SwarmState, ControlReadings]:
         """Apply ``cmd_body`` (B, N, 2) m/s body frame (the world clips the speed to ``copters.max_speed``),
         step once, and sense. Returns (the advanced state — its arrays are ``state``'s, changed in place —,
-        the readings of the new step)."""
-        obs = self._run(state, cmd_body, 1)
+        the readings of the new step, in ``out`` if given, as in :meth:`sense`)."""
+        obs = self._run(state, cmd_body, 1, out)
         ws = state.world
         return replace(state, world=replace(ws, step=ws.step + 1)), obs
