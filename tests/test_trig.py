@@ -83,7 +83,8 @@ def test_sin_fast_is_the_polynomial_within_half_pi_and_libm_beyond(x):
     if abs(x) <= HALF_PI:
         assert s == sin_half_pi(x)
     else:
-        np.testing.assert_array_equal(s, np.sin(x))  # NaN and ±inf give NaN, as libm
+        with np.errstate(invalid="ignore"):  # NaN and ±inf give NaN, as libm
+            np.testing.assert_array_equal(s, np.sin(x))
     np.testing.assert_array_equal(sin_fast_array(np.array([[x, -x]])), [[sin_fast(x), sin_fast(-x)]])
 
 
