@@ -1,7 +1,7 @@
 """Non-inlined twins of ``inline="always"`` kernels.
 
 A batched or closed-loop kernel that inlined every per-environment kernel at numba's IR level would take minutes to
-compile (IR inlining and type inference grow steeply with size); it calls a *twin* instead: the same Python function
+compile (IR inlining and type inference grow steeply with size); it calls a *twin* instead: the same Python code
 compiled once as a called function. Identical results.
 
 Compile time compounds with depth: numba links the LLVM IR of every callee into each caller's module and optimizes
@@ -21,7 +21,7 @@ __all__ = ["twin", "INTERNAL"]
 #: ``swarm_env`` a quarter of its LLVM IR), and every caller links them in and optimizes them again.
 INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 
-#: the options that change generated code (and so must agree between two compilations of one function)
+#: the options that change generated code: a twin takes its kernel's, so that both give identical results
 _CODE_OPTIONS = ("error_model", "fastmath", "boundscheck", "nogil")
 
 

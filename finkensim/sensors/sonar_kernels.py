@@ -28,8 +28,8 @@ from numba import njit
 
 from ..kernels.cellgrid import build_env, query_env
 from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
-from ..kernels.trig import sin_fast
 from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
+from ..kernels.trig import sin_fast
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 

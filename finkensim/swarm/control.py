@@ -37,7 +37,8 @@ CHUNKS = 64
 
 
 class ControlReadings(NamedTuple):
-    """What the copters sense after a controlled step (float64; a disabled sensor's array stays zero):
+    """What the copters sense after a controlled step (float64; a disabled sensor's array keeps the value
+    :meth:`Controlled.readings` gives it: max_range for the sonar, zero otherwise):
     sonar (B, N, 4) m (front, left, back, right); ranging (B, N, N + M) m; imu_acc (B, N, 2) m/s² body
     frame; imu_gyro (B, N) rad/s."""
 
@@ -61,6 +62,7 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
         sonar_twin(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
                    (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
     if run.do_ranging:
+        # fill passed explicitly: the same signature as swarm_env's call, so one compilation serves both
         ranging_twin(pos_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b, True)
     if run.do_imu:
         imu_twin(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, obs.imu_acc[b], obs.imu_gyro[b])
