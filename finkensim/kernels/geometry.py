@@ -30,19 +30,23 @@ def point_segment_distance(px, py, ax, ay, bx, by):
 
 @njit(cache=True, inline="always")
 def ray_segment(ox, oy, dx, dy, ax, ay, bx, by):
-    """Distance along the unit ray O + t·D (t ≥ 0) to segment AB; ``inf`` if it misses or is parallel."""
+    """Distance along the unit ray O + t·D (t ≥ 0) to segment AB; ``inf`` if it misses or is parallel.
+
+    Written without branches (both quotients computed, then selected): whether a ray meets a plate is a coin toss
+    for the branch predictor, and the sonar tests a few plates per ray (``benchmarks``: 0.15 µs per 10-copter
+    environment step). The parallel case divides by 1 instead of 0 and is then discarded.
+    """
     ex = bx - ax
     ey = by - ay
     den = dx * ey - dy * ex
-    if den == 0.0:
-        return INF
+    parallel = den == 0.0
+    q = 1.0 if parallel else den
     wx = ax - ox
     wy = ay - oy
-    t = (wx * ey - wy * ex) / den
-    s = (wx * dy - wy * dx) / den
-    if t >= 0.0 and 0.0 <= s <= 1.0:
-        return t
-    return INF
+    t = (wx * ey - wy * ex) / q
+    s = (wx * dy - wy * dx) / q
+    hit = (t >= 0.0) & (s >= 0.0) & (s <= 1.0) & (not parallel)
+    return t if hit else INF
 
 
 @njit(cache=True, inline="always")
@@ -50,22 +54,24 @@ def ray_circle(ox, oy, dx, dy, cx, cy, r):
     """Distance along the unit ray O + t·D (t ≥ 0) to the first crossing of circle (C, r); ``inf`` if none.
 
     An origin inside the circle returns the exit distance (the ray still meets the rim).
+
+    Without branches: both crossings are computed (the square root of a negative discriminant is NaN and then
+    discarded) and the answer selected. Whether a sonar ray's line passes within r of another copter is
+    unpredictable in a swarm, and the branchy form spent more time in mispredictions than in arithmetic
+    (``benchmarks``: ideal sonar raycast of 10 copters 5.7 → 4.9 µs per environment step with
+    :func:`~finkensim.kernels.raycast.copter_hits`).
     """
     fx = ox - cx
     fy = oy - cy
     b = fx * dx + fy * dy
     c = fx * fx + fy * fy - r * r
     disc = b * b - c
-    if disc < 0.0:
-        return INF
     sq = np.sqrt(disc)
-    t = -b - sq
-    if t >= 0.0:
-        return t
-    t = -b + sq
-    if t >= 0.0:
-        return t
-    return INF
+    near = -b - sq
+    far = -b + sq
+    t = far if far >= 0.0 else INF
+    t = near if near >= 0.0 else t
+    return INF if disc < 0.0 else t
 
 
 @njit(cache=True, parallel=True)

@@ -50,15 +50,19 @@ def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
     indices, e.g. those a cell grid found near the ray's origin). Returns (t m, kind): the minimum over the
     copters, so the order they are tested in does not matter (a tie keeps the earlier hit, of equal t).
     """
+    # the nearest circle first, then one comparison with (best, kind): the same value and kind as comparing
+    # circle by circle (the first minimum of [best, t_1, t_2, …] either way, −0 before +0 included), and the loop
+    # carries no branch on the data (see ray_circle)
     M = pos_b.shape[0] if n_cand < 0 else n_cand
+    nearest = np.inf
     for c in range(M):
         m = c if n_cand < 0 else cand[c]
-        if m == self_n:
-            continue
         t = ray_circle(ox, oy, dx, dy, pos_b[m, 0], pos_b[m, 1], radius)
-        if t < best:
-            best = t
-            kind = HIT_COPTER
+        t = np.inf if m == self_n else t
+        nearest = t if t < nearest else nearest
+    if nearest < best:
+        best = nearest
+        kind = HIT_COPTER
     return best, kind
 
 
