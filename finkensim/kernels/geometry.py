@@ -251,10 +251,11 @@ def nearest_body_distance_within_env(seg_a, seg_b, pos_b, radius, cutoff, out_ro
                     k = -1
                     continue
                 g = max(lo - q, q - hi, 0.0)
-                if h2 + g * g < cut2:
-                    d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
-                    if d < out_row[s]:
-                        out_row[s] = d
+                # computed for every segment walked and kept by a select: which copter is nearest to a plate is
+                # unpredictable, and the walk stops near the cut-off anyway
+                d = point_segment_distance(px, py, seg_a[s, 0], seg_a[s, 1], seg_b[s, 0], seg_b[s, 1])
+                nearer = (h2 + g * g < cut2) & (d < out_row[s])
+                out_row[s] = d if nearer else out_row[s]
                 k += step
     for s in range(S):
         v = max(0.0, out_row[s] - radius)
