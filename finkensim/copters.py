@@ -60,7 +60,10 @@ def _lag_factor(tau, dt):
 @njit(cache=True, inline="always")
 def wrap_angle(a):
     """Wrap an angle (rad) to [−π, π)."""
-    w = (a + np.pi) % (2.0 * np.pi) - np.pi
+    x = a + np.pi
+    two_pi = 2.0 * np.pi
+    # the remainder of an x already in [0, 2π) is x itself (exactly): skip the call to fmod that numba's % makes
+    w = (x if 0.0 <= x < two_pi else x % two_pi) - np.pi
     if w >= np.pi:  # the float remainder can round up to 2π for a + π just below 0
         w -= 2.0 * np.pi
     return w
@@ -148,13 +151,11 @@ def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collis
             overlap = any_within_env(pos[i, 0], pos[i, 1], 2.0 * radius, i, gp.x0, gp.y0, gp.inv_cell, gp.nx,
                                      gp.ny, cell_start, order, spos)
         else:
+            # every pair tested, no early exit: whether two copters touch is unpredictable near the walls
             for j in range(N):
-                if j != i:
-                    dx = pos[i, 0] - pos[j, 0]
-                    dy = pos[i, 1] - pos[j, 1]
-                    if dx * dx + dy * dy < lim2:
-                        overlap = True
-                        break
+                dx = pos[i, 0] - pos[j, 0]
+                dy = pos[i, 1] - pos[j, 1]
+                overlap = overlap | ((dx * dx + dy * dy < lim2) & (j != i))
         if overlap and not in_collision[i]:
             collisions[i] += 1
         in_collision[i] = overlap

@@ -122,6 +122,22 @@ def test_wrap_angle_range(a):
     assert math.isclose(math.cos(w), math.cos(a), abs_tol=1e-9) and math.isclose(math.sin(w), math.sin(a), abs_tol=1e-9)
 
 
+def _wrap_angle_reference(a):
+    """The plain form of wrap_angle: Python's float remainder, then the round-up fix."""
+    w = (a + math.pi) % (2.0 * math.pi) - math.pi
+    return w - 2.0 * math.pi if w >= math.pi else w
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.floats(-8.0, 8.0), st.floats(allow_nan=True, allow_infinity=True),
+                 st.sampled_from([-math.pi, math.pi, np.nextafter(-math.pi, 0.0), np.nextafter(math.pi, 0.0),
+                                  np.nextafter(-math.pi, -np.inf), np.nextafter(math.pi, np.inf), 0.0, -0.0])))
+def test_wrap_angle_equals_the_plain_remainder(a):
+    """The in-range shortcut of wrap_angle (no fmod call) gives the plain form's result bit for bit."""
+    got, want = wrap_angle(a), _wrap_angle_reference(a)
+    assert np.array([got]).view(np.int64)[0] == np.array([want]).view(np.int64)[0] or (math.isnan(got) and math.isnan(want))
+
+
 def test_wrap_angle_half_open():
     assert wrap_angle(np.nextafter(-np.pi, -np.inf)) < np.pi
 
