@@ -53,13 +53,14 @@ from __future__ import annotations
 from typing import Iterable, NamedTuple, Sequence
 
 import numpy as np
+from numba import njit
 
 from .copters import WALL_RELEASE_GAP
 
 __all__ = [
     "METRICS", "WALL_DISTANCE", "LINK_RANGE", "COVERAGE_CELL", "episode_metrics", "cohesion",
     "nearest_neighbour", "wall_sticking", "collision_onsets", "wall_contact_onsets", "fragmentation",
-    "coverage", "coverage_cells", "check_metric_names",
+    "coverage", "coverage_cells", "check_metric_names", "centroid_distances", "near_wall",
 ]
 
 WALL_DISTANCE = 0.3   # m, body-to-wall gap counted as "at the wall" by wall_sticking
@@ -139,22 +140,34 @@ def _wall_gap(pos, arena, radius) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------ metrics
 
-def cohesion(pose) -> np.ndarray:
-    """(B,) m: mean distance of a copter centre from the centroid of its environment's swarm.
+@njit(cache=True)
+def centroid_distances(pos) -> np.ndarray:
+    """(T, B, N) m: distance of each copter centre from its environment's centroid, per sample; pos (T, B, N, ≥ 2) m.
 
-    The centroid sums the copters in index order, one vectorised addition per copter: the order numpy's
-    ``mean(axis=2)`` takes on a C-ordered pose (same result, bit for bit), at a third of its time — the
-    cohesion task computes this at every step of B environments."""
-    pos = _positions(pose)
-    x, y = pos[..., 0], pos[..., 1]
-    N = pos.shape[2]
-    sx, sy = x[:, :, 0].copy(), y[:, :, 0].copy()
-    for n in range(1, N):
-        sx += x[:, :, n]
-        sy += y[:, :, n]
-    dx = x - (sx / N)[..., None]
-    dy = y - (sy / N)[..., None]
-    return np.sqrt(dx * dx + dy * dy).mean(axis=(0, 2))
+    The centroid sums the copters in index order (the order numpy's ``mean(axis=2)`` takes on a C-ordered pose:
+    the same result bit for bit). Compiled: the cohesion task computes it at every step of B environments."""
+    T, B, N = pos.shape[0], pos.shape[1], pos.shape[2]
+    out = np.empty((T, B, N))
+    for t in range(T):
+        for b in range(B):
+            sx = pos[t, b, 0, 0]
+            sy = pos[t, b, 0, 1]
+            for n in range(1, N):
+                sx += pos[t, b, n, 0]
+                sy += pos[t, b, n, 1]
+            cx = sx / N
+            cy = sy / N
+            for n in range(N):
+                dx = pos[t, b, n, 0] - cx
+                dy = pos[t, b, n, 1] - cy
+                out[t, b, n] = np.sqrt(dx * dx + dy * dy)
+    return out
+
+
+def cohesion(pose) -> np.ndarray:
+    """(B,) m: mean distance of a copter centre from the centroid of its environment's swarm
+    (:func:`centroid_distances` averaged over samples and copters)."""
+    return centroid_distances(_positions(pose)).mean(axis=(0, 2))
 
 
 def nearest_neighbour(pose) -> np.ndarray:
@@ -172,13 +185,37 @@ def nearest_neighbour(pose) -> np.ndarray:
     return total / (T * N)
 
 
+@njit(cache=True, inline="always")
+def _min_nan(a, b):
+    """min(a, b), NaN if either is NaN (as ``np.minimum``)."""
+    m = a if a < b else b
+    return a if a != a else m
+
+
+@njit(cache=True)
+def near_wall(pos, width, length, radius, wall_distance) -> np.ndarray:
+    """(T, B, N) bool: the body gap min(x, W − x, y, L − y) − radius of each copter centre pos (T, B, N, ≥ 2) m is at
+    most ``wall_distance`` m (arena width × length m; the gap of ``_wall_gap``, compared as ``wall_sticking`` does)."""
+    T, B, N = pos.shape[0], pos.shape[1], pos.shape[2]
+    out = np.empty((T, B, N), dtype=np.bool_)
+    for t in range(T):
+        for b in range(B):
+            for n in range(N):
+                x = pos[t, b, n, 0]
+                y = pos[t, b, n, 1]
+                gap = _min_nan(_min_nan(x, width - x), _min_nan(y, length - y)) - radius
+                out[t, b, n] = gap <= wall_distance
+    return out
+
+
 def wall_sticking(pose, arena, radius, wall_distance: float = WALL_DISTANCE) -> np.ndarray:
     """(B,) fraction of copter-samples whose body is within ``wall_distance`` m of a wall.
 
-    ``arena`` = (width, length) m; ``radius`` m (body disc). Body gap = min(x, W−x, y, L−y) − radius.
+    ``arena`` = (width, length) m; ``radius`` m (body disc). Body gap = min(x, W−x, y, L−y) − radius
+    (:func:`near_wall`).
     """
     pos = _positions(pose)
-    return (_wall_gap(pos, arena, radius) <= wall_distance).mean(axis=(0, 2))
+    return near_wall(pos, float(arena[0]), float(arena[1]), float(radius), float(wall_distance)).mean(axis=(0, 2))
 
 
 def collision_onsets(pose, radius, final_pos=None) -> np.ndarray:

@@ -12,7 +12,7 @@ from scipy.sparse.csgraph import connected_components
 from finkensim import metrics as M
 from finkensim.config import Config
 from finkensim.metrics import (METRICS, check_metric_names, cohesion, collision_onsets, coverage, episode_metrics,
-                               fragmentation, nearest_neighbour, wall_contact_onsets, wall_sticking)
+                               fragmentation, near_wall, nearest_neighbour, wall_contact_onsets, wall_sticking)
 from finkensim.behaviours.open_loop import RandomWalk
 from finkensim.world import World
 
@@ -48,6 +48,21 @@ def test_cohesion_equals_the_numpy_formula_bit_for_bit(T, B, N, seed, width):
     pos = pose[..., :2]
     expected = np.linalg.norm(pos - pos.mean(axis=2, keepdims=True), axis=-1).mean(axis=(0, 2))
     assert np.array_equal(cohesion(pose), expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 3), st.integers(1, 4), st.integers(1, 12), st.integers(0, 2**32 - 1), st.sampled_from([2, 3]),
+       st.floats(-0.5, 0.5), st.floats(0.0, 0.3))
+def test_wall_sticking_equals_the_numpy_formula_bit_for_bit(T, B, N, seed, width, wall_distance, radius):
+    """near_wall (compiled) against the numpy form of the body gap, with non-finite coordinates mixed in."""
+    rng = np.random.default_rng(seed)
+    pose = rng.uniform(-0.5, 4.5, size=(T, B, N, width))
+    special = rng.random(pose.shape) < 0.1
+    pose[special] = rng.choice([np.nan, np.inf, -np.inf, 0.0, -0.0, 3.0, 4.0], size=int(special.sum()))
+    x, y = pose[..., 0], pose[..., 1]
+    gap = np.minimum(np.minimum(x, 3.0 - x), np.minimum(y, 4.0 - y)) - radius
+    assert np.array_equal(near_wall(pose[..., :2], 3.0, 4.0, radius, wall_distance), gap <= wall_distance)
+    assert np.array_equal(wall_sticking(pose, (3.0, 4.0), radius, wall_distance), (gap <= wall_distance).mean(axis=(0, 2)))
 
 
 def test_nearest_neighbour_known_values():
