@@ -108,15 +108,14 @@ def pick_component(x, u_node, u_col, inv_h, prob, alias):
     g = int(t)
     if g > n_nodes - 2:
         g = n_nodes - 2
-    if u_node < t - g:  # take the upper node with probability f = t - g
-        g += 1
+    # the two coins are random by design: selects, not branches, which the predictor would miss half the time
+    g += u_node < t - g  # take the upper node with probability f = t - g
     s = u_col * k
     c = int(s)
     if c > k - 1:  # u_col * k can round up to k
         c = k - 1
-    if s - c < prob[g, c]:
-        return c
-    return alias[g, c]
+    other = np.int64(alias[g, c])
+    return c if s - c < prob[g, c] else other
 
 
 @njit(cache=True)
