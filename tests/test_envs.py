@@ -160,6 +160,21 @@ def test_observation_is_the_readings_in_layout_order():
     np.testing.assert_array_equal(core.observe(r), expected.astype(np.float32))
 
 
+@pytest.mark.parametrize("on, pose", [(("sonar",), False), (("ranging", "imu"), True), ((), True)])
+def test_observation_blocks_of_a_partial_layout(on, pose):
+    """The compiled assembly writes exactly the enabled blocks, in layout order, as float32."""
+    scen = {**SCEN, **{k: {"enabled": k in on} for k in ("sonar", "ranging", "imu")}}
+    env = SwarmVectorEnv(num_envs=3, scenario=scen, pose=pose)
+    env.reset(seed=1)
+    core = env.core
+    r = core.ctl.sense(core.state.copy())
+    parts = {"sonar": r.sonar, "ranging": r.ranging, "imu": np.concatenate([r.imu_acc, r.imu_gyro[..., None]], -1),
+             "pose": core.state.world.pose}
+    expected = np.concatenate([parts[name] for name, _ in core.layout], axis=-1).astype(np.float32)
+    assert [name for name, _ in core.layout] == [k for k in ("sonar", "ranging", "imu") if k in on] + (["pose"] if pose else [])
+    np.testing.assert_array_equal(core.observe(r), expected)
+
+
 def test_coverage_rewards_sum_to_the_coverage_metric():
     vec = SwarmVectorEnv(num_envs=2, scenario=SCEN, task="coverage", max_steps=30)
     vec.reset(seed=0)
