@@ -189,22 +189,30 @@ def ranging_env(pos_b, beacons, seed, env, step, p, out):
     n = pos_b.shape[0]
     m = beacons.shape[0]
     mode, max_range, sigma, inv_h, prob, alias, comp = p
+    drawn = np.empty(n + m, dtype=np.int64)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
         xi = pos_b[i, 0]
         yi = pos_b[i, 1]
+        # 1. true distances into the row, and the columns that draw a random reading listed without branches (which
+        # copters are beyond max_range is unpredictable); 2. those columns' readings. Beyond max_range the reading is
+        # max_range itself (reading_rule) and the diagonal 0.
+        count = 0
         for j in range(n + m):
-            if j == i:
-                out[i, j] = 0.0
-                continue
             if j < n:
                 dx = pos_b[j, 0] - xi
                 dy = pos_b[j, 1] - yi
             else:
                 dx = beacons[j - n, 0] - xi
                 dy = beacons[j - n, 1] - yi
-            out[i, j] = reading_rule(np.sqrt(dx * dx + dy * dy), key, j, mode, max_range, sigma, inv_h, prob, alias,
-                                     comp)
+            x = np.sqrt(dx * dx + dy * dy)
+            beyond = x > max_range
+            out[i, j] = 0.0 if j == i else (max_range if beyond else x)
+            drawn[count] = j
+            count += (j != i) & (not beyond)
+        for c in range(count):
+            j = drawn[c]
+            out[i, j] = reading_rule(out[i, j], key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
 
 
 @njit(cache=True, inline="always")
