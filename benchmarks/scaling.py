@@ -133,7 +133,7 @@ def sonar_brute(pos, vel, yaw, width, length, n_steps, out):
                 best = box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length)
                 for j in range(N):
                     if j != i:
-                        t = ray_circle(ox, oy, dirs[k, 0], dirs[k, 1], pos[j, 0], pos[j, 1], RADIUS)
+                        t = ray_circle(ox, oy, dirs[k, 0], dirs[k, 1], pos[j, 0], pos[j, 1], RADIUS, False)
                         if t < best:
                             best = t
                 out[i, k] = min(best, SONAR_RANGE)

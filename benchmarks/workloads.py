@@ -103,12 +103,12 @@ def compare_step_env(pos, yaw, wa, wb, p, sonar, dist):
                 dx, dy = s, -c
             best = p.max_range
             for w in range(wa.shape[0]):
-                t = ray_segment(ox, oy, dx, dy, wa[w, 0], wa[w, 1], wb[w, 0], wb[w, 1])
+                t = ray_segment(ox, oy, dx, dy, wa[w, 0], wa[w, 1], wb[w, 0], wb[w, 1], False)
                 if t < best:
                     best = t
             for j in range(N):
                 if j != i:
-                    t = ray_circle(ox, oy, dx, dy, pos[j, 0], pos[j, 1], p.radius)
+                    t = ray_circle(ox, oy, dx, dy, pos[j, 0], pos[j, 1], p.radius, False)
                     if t < best:
                         best = t
             sonar[i, k] = best

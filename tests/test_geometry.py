@@ -59,6 +59,7 @@ def test_ray_segment_matches_naive(o, angle, a, b):
     d = _unit(angle)
     t = g.ray_segment(*o, *d, *a, *b)
     assert _same(t, naive.ray_segment(o, d, a, b))
+    assert _same(g.ray_segment(*o, *d, *a, *b, False), t)  # the branching machine code: the same result
     if np.isfinite(t):
         hit = (o[0] + t * d[0], o[1] + t * d[1])
         assert t >= 0.0
@@ -71,10 +72,40 @@ def test_ray_circle_matches_naive(o, angle, c, r):
     d = _unit(angle)
     t = g.ray_circle(*o, *d, *c, r)
     assert _same(t, naive.ray_circle(o, d, c, r))
+    assert _same(g.ray_circle(*o, *d, *c, r, False), t)  # the branching machine code: the same result
     if np.isfinite(t):
         hit = np.array([o[0] + t * d[0], o[1] + t * d[1]])
         assert t >= 0.0
         assert abs(np.hypot(*(hit - np.array(c))) - r) < 1e-6 * max(1.0, t, r)
+
+
+@pytest.mark.parametrize("args", [
+    (0.0, 0.0, 1.0, 0.0, 1.0, -1.0, 1.0, 1.0),      # hits at t = 1
+    (0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 2.0, 1.0),       # parallel: den = 0
+    (0.0, 0.0, 1.0, 0.0, -1.0, -1.0, -1.0, 1.0),    # behind the origin
+    (0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 1.0),       # grazing the end A
+    (0.0, 0.0, np.nan, 0.0, 1.0, -1.0, 1.0, 1.0),
+    (0.0, 0.0, 1.0, 0.0, np.inf, -1.0, np.inf, 1.0),
+])
+def test_ray_segment_edge_cases_agree_between_selects_and_branches(args):
+    with np.errstate(invalid="ignore"):  # the naive twin's numpy arithmetic on infinities
+        want = naive.ray_segment(args[0:2], args[2:4], args[4:6], args[6:8])
+    assert _same(g.ray_segment(*args), want) and _same(g.ray_segment(*args, False), want)
+
+
+@pytest.mark.parametrize("args", [
+    (0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.5),    # hits at 1.5
+    (2.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.5),    # origin inside: the exit distance
+    (0.0, 0.0, 1.0, 0.0, 2.0, 0.5, 0.5),    # tangent: disc = 0
+    (0.0, 0.0, 1.0, 0.0, 2.0, 0.6, 0.5),    # misses: disc < 0
+    (0.0, 0.0, -1.0, 0.0, 2.0, 0.0, 0.5),   # behind
+    (0.0, 0.0, 1.0, 0.0, np.nan, 0.0, 0.5),
+    (0.0, 0.0, 1.0, 0.0, np.inf, 0.0, 0.5),
+])
+def test_ray_circle_edge_cases_agree_between_selects_and_branches(args):
+    with np.errstate(invalid="ignore"):
+        want = naive.ray_circle(args[0:2], args[2:4], args[4:6], args[6])
+    assert _same(g.ray_circle(*args), want) and _same(g.ray_circle(*args, False), want)
 
 
 @settings(max_examples=200, deadline=None)

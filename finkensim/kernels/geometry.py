@@ -29,43 +29,63 @@ def point_segment_distance(px, py, ax, ay, bx, by):
 
 
 @njit(cache=True, inline="always")
-def ray_segment(ox, oy, dx, dy, ax, ay, bx, by):
+def ray_segment(ox, oy, dx, dy, ax, ay, bx, by, selects=True):
     """Distance along the unit ray O + t·D (t ≥ 0) to segment AB; ``inf`` if it misses or is parallel.
 
-    Written without branches (both quotients computed, then selected): whether a ray meets a plate is a coin toss
-    for the branch predictor, and the sonar tests a few plates per ray (``benchmarks``: 0.15 µs per 10-copter
-    environment step). The parallel case divides by 1 instead of 0 and is then discarded.
+    ``selects`` as in :func:`ray_circle` (the same result either way): True computes both quotients and selects
+    (whether a ray meets a plate is a coin toss for the branch predictor; the parallel case divides by 1 instead of
+    0 and is then discarded), False returns early on a parallel segment and branches on the hit test.
     """
     ex = bx - ax
     ey = by - ay
     den = dx * ey - dy * ex
     parallel = den == 0.0
+    if not selects and parallel:
+        return INF
     q = 1.0 if parallel else den
     wx = ax - ox
     wy = ay - oy
     t = (wx * ey - wy * ex) / q
     s = (wx * dy - wy * dx) / q
+    if not selects:
+        if t >= 0.0 and 0.0 <= s <= 1.0:
+            return t
+        return INF
     hit = (t >= 0.0) & (s >= 0.0) & (s <= 1.0) & (not parallel)
     return t if hit else INF
 
 
 @njit(cache=True, inline="always")
-def ray_circle(ox, oy, dx, dy, cx, cy, r):
+def ray_circle(ox, oy, dx, dy, cx, cy, r, selects=True):
     """Distance along the unit ray O + t·D (t ≥ 0) to the first crossing of circle (C, r); ``inf`` if none.
 
     An origin inside the circle returns the exit distance (the ray still meets the rim).
 
-    Without branches: both crossings are computed (the square root of a negative discriminant is NaN and then
-    discarded) and the answer selected. Whether a sonar ray's line passes within r of another copter is
-    unpredictable in a swarm, and the branchy form spent more time in mispredictions than in arithmetic
-    (``benchmarks``: ideal sonar raycast of 10 copters 5.7 → 4.9 µs per environment step with
-    :func:`~finkensim.kernels.raycast.copter_hits`).
+    ``selects`` (a constant at each call site; the result is the same bit for bit) chooses the machine code:
+    True computes both crossings (the square root of a negative discriminant is NaN and then discarded) and selects
+    the answer; False returns early when the ray's line misses the circle. Whether a sonar ray's line passes
+    within r of another copter is a coin toss in a swarm that gathers or presses against a wall, and there the
+    early return spent more time in mispredicted branches than in arithmetic (``benchmarks.breakdown``: ideal sonar
+    raycast of 10 copters 5.3 → 4.3 µs per environment step with :func:`~finkensim.kernels.raycast.copter_hits`);
+    among copters spread over the arena nearly every line misses, the branch is predictable and the skipped square
+    root is the saving (the comparison workload of ``benchmarks.workloads``: 18 % faster with branches).
     """
     fx = ox - cx
     fy = oy - cy
     b = fx * dx + fy * dy
     c = fx * fx + fy * fy - r * r
     disc = b * b - c
+    if not selects:
+        if disc < 0.0:
+            return INF
+        sq = np.sqrt(disc)
+        t = -b - sq
+        if t >= 0.0:
+            return t
+        t = -b + sq
+        if t >= 0.0:
+            return t
+        return INF
     sq = np.sqrt(disc)
     near = -b - sq
     far = -b + sq
