@@ -79,7 +79,9 @@ def run(seconds: float, repeats: int, log, threads=(1, 2), bs=ENV_B) -> list[dic
     return rows
 
 
-def markdown(rows: list[dict]) -> str:
+def markdown(rows: list[dict], vmas_rows: list[dict] = ()) -> str:
+    """The (c) table; ``vmas_rows``: section (a)'s VMAS measurements at N = 10 of the same run (VMAS's own vectorized
+    env on the comparison scenario: 4 rays per copter, no sensor errors, no reward task), shown next to the envs."""
     L = ["## (c) RL environments: N = 10, default sensors on, cohesion reward (benchmarks/envs_bench.py)", "",
          "| env | N | B | env-steps/s | copter-steps/s | threads |", "|---|---:|---:|---:|---:|---:|"]
     for r in rows:
@@ -88,6 +90,11 @@ def markdown(rows: list[dict]) -> str:
                      f"{r['copter_steps_per_s']:,.0f} | {r['threads']} |")
         else:
             L.append(f"| {r['env']} | {r['N']} | {r['B']} | {r.get('error') or r.get('skipped')} | | |")
+    for v in vmas_rows:
+        L.append(f"| VMAS {v.get('vmas', '?')} env, comparison scenario (section (a)) | {v['N']} | {v['B']} | "
+                 f"{v['env_steps_per_s']:,.0f} | {v['copter_steps_per_s']:,.0f} | {v.get('threads', '?')} |")
+    if not vmas_rows:
+        L.append("\nVMAS's own env: not measured in this run (`make bench-peers` installs it; section (a) runs it).")
     return "\n".join(L) + "\n"
 
 

@@ -357,7 +357,8 @@ def report(res: dict) -> str:
     if res.get("envs"):
         from .envs_bench import markdown
 
-        L.append(markdown(res["envs"]))
+        vmas = [r["vmas"] for r in res.get("compare", []) if r["N"] == 10 and "vmas" in r]
+        L.append(markdown(res["envs"], vmas))
     L.append("## JIT compile time (subprocess; cold = fresh empty NUMBA_CACHE_DIR, warm = cache hit)")
     L.append("")
     if not res.get("compile"):

@@ -211,3 +211,7 @@ def test_envs_benchmark_runs():
                                                   ("pettingzoo parallel", 1), ("pettingzoo parallel", 2)]
     assert all(r["env_steps_per_s"] > 0 for r in rows)
     assert "| gymnasium vector | 10 | 2 |" in envs_bench.markdown(rows)
+    assert "VMAS's own env: not measured" in envs_bench.markdown(rows)
+    vmas = dict(N=10, B=64, env_steps_per_s=5000.0, copter_steps_per_s=50000.0, vmas="1.5.2", threads=2)
+    assert "| VMAS 1.5.2 env, comparison scenario (section (a)) | 10 | 64 | 5,000 | 50,000 | 2 |" in \
+        envs_bench.markdown(rows, [vmas])
