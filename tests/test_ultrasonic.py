@@ -12,6 +12,8 @@ from numba import njit
 from scipy import stats
 
 from finkensim.arena import Arena
+from finkensim.kernels.rng import STREAM_SONAR, counter_key
+from finkensim.sensors.sonar_kernels import measured_reading
 from finkensim.config import Config
 from finkensim.kernels.rng import STREAM_SONAR_SCHEDULE, uniforms_array
 from finkensim.sensors.ultrasonic import (
@@ -690,3 +692,25 @@ def test_sonar_headings_within_the_stated_bound_of_cos_sin_of_the_sum(yaws, moun
     assert np.all(np.abs(np.hypot(buf[..., 2], buf[..., 3]) - 1.0) <= 1e-15)
     np.testing.assert_array_equal(buf[..., 0], pos[:, None, 0] + sp.offset * buf[..., 2])
     np.testing.assert_array_equal(buf[..., 1], pos[:, None, 1] + sp.offset * buf[..., 3])
+
+
+@njit(cache=True)
+def _measured(d, echo, path, seed, k, sp):
+    return measured_reading(d, echo, path, counter_key(seed, 0, 0, 0, STREAM_SONAR), k, sp)
+
+
+@pytest.mark.parametrize("mode", ["constant", "geometric"])
+def test_crosstalk_readings_carry_the_range_scale_and_the_bias(mode):
+    """A cross-talk reading is an echo time converted like any other: range_scale · (d/2 or path/2) + bias, before
+    the clamp. Constant cross-talk with probability 1 always halves; geometric without jitter reads path/2."""
+    from finkensim.sensors.sonar_model import sonar_scalars
+
+    _, _, sp = setup(error="none", crosstalk=mode, crosstalk_probability=1.0, crosstalk_jitter=0.0)
+    d, path = 2.4, 1.6
+    for scale, bias in ((1.0, 0.0), (1.05, -0.08), (0.97, 0.12)):
+        sc = sonar_scalars(sp._replace(range_scale=scale, bias=bias))
+        got = _measured(d, True, path if mode == "geometric" else np.inf, 3, 1, sc)
+        half = 0.5 * (d if mode == "constant" else path)
+        assert got == min(sp.max_range, max(sp.min_range, half * scale + bias))
+        if scale == 1.0 and bias == 0.0:
+            assert got == half  # the configured model: exactly d/2 (path/2)

@@ -323,15 +323,17 @@ def measured_reading(d, echo, path, key, k, sp):
     cross-talk path heard (:func:`crosstalk_path`; inf if none or not geometric); key, k: the random
     numbers (block k of the STREAM_SONAR cell ``key``). Constant cross-talk replaces the reading by d/2
     with probability ``crosstalk_probability``; geometric cross-talk reads path/2 + jitter when that
-    arrives first (heard with probability ``crosstalk_hear_probability``).
+    arrives first (heard with probability ``crosstalk_hear_probability``). A cross-talk reading is an
+    echo time converted like any other, so ``range_scale`` and ``bias`` apply to it too: range_scale · d/2
+    + bias (they are 1 and 0 unless the gap diagnosis fits them, and then the reading is d/2 exactly).
     """
     y = echo_reading(d, echo, key, k, sp)
     if sp.crosstalk & CROSSTALK_CONSTANT:
         if uniform(key, 8 * k) < sp.crosstalk_probability:
-            y = 0.5 * d
+            y = 0.5 * d * sp.range_scale + sp.bias
     if sp.crosstalk & CROSSTALK_GEOMETRIC and path < np.inf:
         if sp.crosstalk_hear_probability >= 1.0 or uniform(key, 8 * k + HEAR_COIN) < sp.crosstalk_hear_probability:
-            c = 0.5 * path
+            c = 0.5 * path * sp.range_scale + sp.bias
             if sp.crosstalk_jitter > 0.0:
                 c += sp.crosstalk_jitter * normal(key, 4 * k + 2)
             if c < y:

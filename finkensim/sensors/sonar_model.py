@@ -73,7 +73,8 @@ class SonarModel(NamedTuple):
 
     Fields not set by the config (their defaults change nothing; the gap diagnosis fits them as
     candidate effects): range_scale, the factor on every echo distance (speed of sound differs from
-    the assumed one); bias m, added to every echo; crosstalk_hear_probability, the probability that a
+    the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
+    converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
     """
 

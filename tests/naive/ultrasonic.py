@@ -164,11 +164,13 @@ def naive_measured(d, echo, path, k, u, z, sp):
     """Measured reading of sonar k: echo error, constant cross-talk (the report's d/2), geometric
     cross-talk (first arrival of path/2 + jitter, heard with crosstalk_hear_probability), clamp."""
     y = naive_echo(d, echo, k, u, z, sp)
+    # a cross-talk reading is an echo time converted like any other: the range scale and the bias apply to it
     if sp.crosstalk & 1 and u[8 * k] < sp.crosstalk_probability:
-        y = 0.5 * d
+        y = 0.5 * d * sp.range_scale + sp.bias
     if sp.crosstalk & 2 and path < math.inf:
         if sp.crosstalk_hear_probability >= 1.0 or u[8 * k + 6] < sp.crosstalk_hear_probability:
-            c = 0.5 * path + (sp.crosstalk_jitter * z[4 * k + 2] if sp.crosstalk_jitter > 0 else 0.0)
+            c = 0.5 * path * sp.range_scale + sp.bias + (sp.crosstalk_jitter * z[4 * k + 2] if sp.crosstalk_jitter > 0
+                                                         else 0.0)
             y = min(y, c)
     return min(sp.max_range, max(sp.min_range, y))
 
