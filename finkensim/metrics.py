@@ -132,10 +132,29 @@ def _pair_distances(p) -> np.ndarray:
     return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
 
 
-def _wall_gap(pos, arena, radius) -> np.ndarray:
-    w, l = float(arena[0]), float(arena[1])
-    x, y = pos[..., 0], pos[..., 1]
-    return np.minimum(np.minimum(x, w - x), np.minimum(y, l - y)) - float(radius)
+@njit(cache=True, inline="always")
+def _min_nan(a, b):
+    """min(a, b), NaN if either is NaN (as ``np.minimum``)."""
+    m = a if a < b else b
+    return a if a != a else m
+
+
+@njit(cache=True, inline="always")
+def _body_gap(x, y, width, length, radius):
+    """Body-to-wall gap (m) of a copter centre (x, y) m: min(x, W − x, y, L − y) − radius (NaN for a NaN coordinate)."""
+    return _min_nan(_min_nan(x, width - x), _min_nan(y, length - y)) - radius
+
+
+@njit(cache=True)
+def _wall_gaps(pos, width, length, radius) -> np.ndarray:
+    """(T, B, N) m: :func:`_body_gap` of every centre of pos (T, B, N, ≥ 2) m."""
+    T, B, N = pos.shape[0], pos.shape[1], pos.shape[2]
+    out = np.empty((T, B, N))
+    for t in range(T):
+        for b in range(B):
+            for n in range(N):
+                out[t, b, n] = _body_gap(pos[t, b, n, 0], pos[t, b, n, 1], width, length, radius)
+    return out
 
 
 # ------------------------------------------------------------------------------------------ metrics
@@ -185,26 +204,17 @@ def nearest_neighbour(pose) -> np.ndarray:
     return total / (T * N)
 
 
-@njit(cache=True, inline="always")
-def _min_nan(a, b):
-    """min(a, b), NaN if either is NaN (as ``np.minimum``)."""
-    m = a if a < b else b
-    return a if a != a else m
-
-
 @njit(cache=True)
 def near_wall(pos, width, length, radius, wall_distance) -> np.ndarray:
     """(T, B, N) bool: the body gap min(x, W − x, y, L − y) − radius of each copter centre pos (T, B, N, ≥ 2) m is at
-    most ``wall_distance`` m (arena width × length m; the gap of ``_wall_gap``, compared as ``wall_sticking`` does)."""
+    most ``wall_distance`` m (arena width × length m; the gap of ``wall_contact_onsets``, compared as ``wall_sticking``
+    does; a bool array rather than :func:`_wall_gaps` and a comparison: the cohesion task calls it at every step)."""
     T, B, N = pos.shape[0], pos.shape[1], pos.shape[2]
     out = np.empty((T, B, N), dtype=np.bool_)
     for t in range(T):
         for b in range(B):
             for n in range(N):
-                x = pos[t, b, n, 0]
-                y = pos[t, b, n, 1]
-                gap = _min_nan(_min_nan(x, width - x), _min_nan(y, length - y)) - radius
-                out[t, b, n] = gap <= wall_distance
+                out[t, b, n] = _body_gap(pos[t, b, n, 0], pos[t, b, n, 1], width, length, radius) <= wall_distance
     return out
 
 
@@ -241,7 +251,7 @@ def wall_contact_onsets(pose, arena, radius, final_pos=None) -> np.ndarray:
     """(B,) wall-contact onsets summed over copters, with the copter model's hysteresis: a contact
     begins at body gap 0 (within 1e-9 m) and ends once the gap exceeds ``WALL_RELEASE_GAP``."""
     pos = _with_final(_positions(pose), final_pos)
-    gap = _wall_gap(pos, arena, radius)  # (T, B, N)
+    gap = _wall_gaps(pos, float(arena[0]), float(arena[1]), float(radius))  # (T, B, N)
     in_wall = np.zeros(gap.shape[1:], dtype=bool)
     counts = np.zeros(gap.shape[1], dtype=np.int64)
     for g in gap:

@@ -62,6 +62,7 @@ def test_wall_sticking_equals_the_numpy_formula_bit_for_bit(T, B, N, seed, width
     x, y = pose[..., 0], pose[..., 1]
     gap = np.minimum(np.minimum(x, 3.0 - x), np.minimum(y, 4.0 - y)) - radius
     assert np.array_equal(near_wall(pose[..., :2], 3.0, 4.0, radius, wall_distance), gap <= wall_distance)
+    np.testing.assert_array_equal(M._wall_gaps(pose[..., :2], 3.0, 4.0, radius), gap)  # wall_contact_onsets' gaps
     assert np.array_equal(wall_sticking(pose, (3.0, 4.0), radius, wall_distance), (gap <= wall_distance).mean(axis=(0, 2)))
 
 

@@ -83,6 +83,8 @@ class SwarmCore:
         self.max_steps = int(max_steps)
         self.pose = bool(pose)
         self.layout = obs_layout(self.sim, self.pose)
+        blocks = dict(self.layout)
+        self._obs_blocks = ("sonar" in blocks, "ranging" in blocks, "imu" in blocks, self.pose)  # observe's flags
         self.obs_dim = sum(w for _, w in self.layout)
         self.max_speed = float(c.copters.max_speed)
         self.task = make_task(task, task_kwargs)
@@ -146,10 +148,8 @@ class SwarmCore:
         """(B, N, D) float32 observation from :class:`~finkensim.swarm.control.ControlReadings`."""
         B, N = r.sonar.shape[:2]
         obs = np.empty((B, N, self.obs_dim), dtype=np.float32)
-        blocks = dict(self.layout)
         ws = self.state.world
-        _assemble_observation(r.sonar, r.ranging, r.imu_acc, r.imu_gyro, ws.pos, ws.yaw, "sonar" in blocks,
-                              "ranging" in blocks, "imu" in blocks, self.pose, obs)
+        _assemble_observation(r.sonar, r.ranging, r.imu_acc, r.imu_gyro, ws.pos, ws.yaw, *self._obs_blocks, obs)
         return obs
 
     # -- rendering --
