@@ -78,8 +78,11 @@ def gather_draws(a, sel, pos, copter, channel, out):
     G = a.shape[3]
     M = out.shape[1]
     for i in prange(sel.shape[0]):
-        for m in range(M):
-            out[sel[i], m] = a[pos[i], copter[i], channel[i], m % G]
+        row = sel[i]
+        for g in range(min(G, M)):  # stepping m by G instead of an integer division per element
+            v = a[pos[i], copter[i], channel[i], g]
+            for m in range(g, M, G):
+                out[row, m] = v
 
 
 def _gather(tab, flights, rows, ideal_fn, M):

@@ -207,10 +207,6 @@ class ReplayPoses(NamedTuple):
     bulge: np.ndarray
 
 
-# the nearest echo of one sonar as a called function (not inlined: shorter compilation of the replay)
-_sonar_hit_fn = njit(cache=True)(sonar_hit.py_func)
-
-
 @njit(cache=True)
 def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kind, out_xtalk):
     """The M pose draws at sample k into row ti of the outputs, for the rays with need[ti, n, s] (the others get
@@ -250,8 +246,8 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
                     out_kind[ti, n, s, m] = HIT_NONE
                     out_xtalk[ti, n, s, m] = np.inf
                     continue
-                t_, hk, hx, hy = _sonar_hit_fn(n, s, yaw_m[n] + mount_yaw[s], pos_m, pa, pb, w.width, w.length, sps,
-                                               rays, buf, bands, all_, -1)
+                t_, hk, hx, hy = sonar_hit(n, s, yaw_m[n] + mount_yaw[s], pos_m, pa, pb, w.width, w.length, sps,
+                                           rays, buf, bands, all_, -1)
                 store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]

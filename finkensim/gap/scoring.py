@@ -59,24 +59,84 @@ def _grouped_terms(x, y, period):
     return s_abs / M, (s_pair / n_pair if n_pair > 0 else 0.0)
 
 
+@njit(cache=True, inline="always")
+def _grouped_terms4(draws, y, i0, period, t_abs, t_pair):
+    """:func:`_grouped_terms` of rows i0 … i0 + 3 (finite observations, one period) at once → t_abs, t_pair.
+
+    Each row's sums run in the same order as :func:`_grouped_terms` (bit for bit); four rows side by side give
+    the CPU four independent chains of additions instead of one, whose latency bounds the single-row loop."""
+    M = draws.shape[1]
+    a0 = a1 = a2 = a3 = 0.0
+    for k in range(M):
+        a0 += abs(draws[i0, k] - y[i0])
+        a1 += abs(draws[i0 + 1, k] - y[i0 + 1])
+        a2 += abs(draws[i0 + 2, k] - y[i0 + 2])
+        a3 += abs(draws[i0 + 3, k] - y[i0 + 3])
+    p0 = p1 = p2 = p3 = 0.0
+    n_pair = 0
+    for i in range(M):
+        skip = i + period
+        x0 = draws[i0, i]
+        x1 = draws[i0 + 1, i]
+        x2 = draws[i0 + 2, i]
+        x3 = draws[i0 + 3, i]
+        for j in range(i + 1, M):
+            if j == skip:
+                skip += period
+                continue
+            p0 += abs(x0 - draws[i0, j])
+            p1 += abs(x1 - draws[i0 + 1, j])
+            p2 += abs(x2 - draws[i0 + 2, j])
+            p3 += abs(x3 - draws[i0 + 3, j])
+            n_pair += 1
+    t_abs[i0] = a0 / M
+    t_abs[i0 + 1] = a1 / M
+    t_abs[i0 + 2] = a2 / M
+    t_abs[i0 + 3] = a3 / M
+    if n_pair > 0:
+        t_pair[i0] = p0 / n_pair
+        t_pair[i0 + 1] = p1 / n_pair
+        t_pair[i0 + 2] = p2 / n_pair
+        t_pair[i0 + 3] = p3 / n_pair
+    else:
+        t_pair[i0:i0 + 4] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _terms_row(draws, y, period, i, t_abs, t_pair):
+    """The two terms of row i → t_abs[i], t_pair[i] (NaN for a non-finite observation)."""
+    M = draws.shape[1]
+    if not np.isfinite(y[i]):
+        t_abs[i] = np.nan
+        t_pair[i] = np.nan
+    elif period[i] <= 1 or period[i] >= M:
+        xs = np.sort(draws[i])
+        t_abs[i], t_pair[i] = _sorted_terms(xs, y[i])
+    else:
+        t_abs[i], t_pair[i] = _grouped_terms(draws[i], y[i], period[i])
+
+
 @njit(cache=True, parallel=True)
 def ensemble_terms_grouped(draws, y, period):
     """Like :func:`ensemble_terms`, for ensembles whose members m and m + period share a random input
     (e.g. a pose draw reused cyclically): the pair term uses only independent pairs, which keeps it
-    unbiased. period (n,) int64; period ≤ 1 or ≥ M means all members are independent."""
+    unbiased. period (n,) int64; period ≤ 1 or ≥ M means all members are independent. Rows are taken four
+    at a time where four neighbours share a grouping period (the same numbers as row by row)."""
     n, M = draws.shape
     t_abs = np.empty(n)
     t_pair = np.empty(n)
-    for i in prange(n):
-        if not np.isfinite(y[i]):
-            t_abs[i] = np.nan
-            t_pair[i] = np.nan
-            continue
-        if period[i] <= 1 or period[i] >= M:
-            xs = np.sort(draws[i])
-            t_abs[i], t_pair[i] = _sorted_terms(xs, y[i])
-        else:
-            t_abs[i], t_pair[i] = _grouped_terms(draws[i], y[i], period[i])
+    for b in prange((n + 3) // 4):
+        i0 = 4 * b
+        if i0 + 4 <= n:
+            p = period[i0]
+            same = (period[i0 + 1] == p) & (period[i0 + 2] == p) & (period[i0 + 3] == p) & (p > 1) & (p < M)
+            finite = (np.isfinite(y[i0]) & np.isfinite(y[i0 + 1]) & np.isfinite(y[i0 + 2])
+                      & np.isfinite(y[i0 + 3]))
+            if same and finite:
+                _grouped_terms4(draws, y, i0, p, t_abs, t_pair)
+                continue
+        for i in range(i0, min(i0 + 4, n)):
+            _terms_row(draws, y, period, i, t_abs, t_pair)
     return t_abs, t_pair
 
 
