@@ -24,7 +24,7 @@ from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemb
                                    gap_ensemble)
 from finkensim.gap.stats import BlockBootstrap, fdr_significant, time_blocks
 from finkensim.gap.validate import CASES, generate
-from finkensim.sensors.sonar_model import SCHEDULE_SIMULTANEOUS, wall_geometry
+from finkensim.sensors.sonar_model import CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, wall_geometry
 from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
 from tests.naive import gap as naive
 from tests.stats import assert_above_se, assert_mean_within_se, assert_proportion_within_se, se_mean
@@ -202,6 +202,40 @@ def test_sonar_draws_cast_only_the_needed_rays_and_those_exactly(seed):
     for a, b in zip(full, part):
         np.testing.assert_array_equal(b[need], a[need])
     assert np.isnan(part[0][~need]).all() and np.isinf(part[2][~need]).all()
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10**6), sx=st.sampled_from([0.0, 0.003]), sy=st.sampled_from([0.0, 0.02]))
+def test_pose_draws_from_the_normal_table_equal_the_keyed_draws(seed, sx, sy):
+    """The σ-free table of pose normals the sonar replay reuses gives draw_poses' poses bit for bit."""
+    _, _, pos, yaw, _ = _scene(seed)
+    times = np.arange(0, pos.shape[0], 2, dtype=np.int64)
+    N, G = pos.shape[1], 5
+    z = np.empty((times.size, G, N, 3))
+    rp.pose_normal_table(times, N, G, seed, 3, z)
+    noise = rp.PoseNoise(sx, sy, seed, 3)
+    for ti, k in enumerate(times):
+        for m in range(G):
+            p1, w1, p2, w2 = np.empty((N, 2)), np.empty(N), np.empty((N, 2)), np.empty(N)
+            rp.draw_poses(pos, yaw, k, m, noise, p1, w1)
+            rp._draw_poses_from(pos, yaw, k, z[ti, m], sx, sy, p2, w2)
+            assert p1.tobytes() == p2.tobytes() and w1.tobytes() == w2.tobytes()
+
+
+def test_sonar_draws_leave_the_crosstalk_paths_out_without_geometric_crosstalk():
+    cfg, arena, pos, yaw, theta = _scene(7)
+    sp = SonarModel.from_config(cfg)
+    assert sp.crosstalk & CROSSTALK_GEOMETRIC
+    times = np.arange(pos.shape[0], dtype=np.int64)
+    K, N, S = times.size, pos.shape[1], 4
+    poses, noise = rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), rp.PoseNoise(0.01, 0.02, 7, 0)
+    geo, off = _sonar_buffers(K, N, S, 2), _sonar_buffers(K, N, S, 2)
+    rp.sonar_draws(poses, wall_geometry(arena), sp, 1.0, times, noise, 2, np.ones((K, N, S), bool), *geo)
+    rp.sonar_draws(poses, wall_geometry(arena), sp._replace(crosstalk=CROSSTALK_OFF), 1.0, times, noise, 2,
+                   np.ones((K, N, S), bool), *off)
+    assert np.isfinite(geo[2]).any() and np.isinf(off[2]).all()
+    for a, b in zip(geo[:2], off[:2]):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_sonar_wall_gain_shortens_wall_readings_by_the_displacement():

@@ -148,6 +148,7 @@ class Table:
     cache: LRU = field(default_factory=LRU, repr=False)  # ideal arrays per flight and parameters
     splits: LRU = field(default_factory=lambda: LRU(8), repr=False)  # rows split by flight
     gathered: LRU = field(default_factory=lambda: LRU(4), repr=False)  # per-row ideal draws (large: few kept)
+    normals: LRU = field(default_factory=lambda: LRU(4), repr=False)  # pose draws' normals per flight and samples
 
     @property
     def n(self) -> int:
@@ -219,7 +220,7 @@ class SonarTable(Table):
         key = ("sonar", split.key, round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9), round(p.bulge_shape, 9),
                sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
-               sp.max_range)
+               sp.max_range, bool(sp.crosstalk & CROSSTALK_GEOMETRIC))
         hit = self.cache.get(key)
         if hit is not None:
             return hit
@@ -230,8 +231,13 @@ class SonarTable(Table):
         dist = np.empty((K, N, S, G))
         kind = np.empty((K, N, S, G), dtype=np.int8)
         xt = np.empty((K, N, S, G))
+        zkey = ("pose normals", split.key, times.tobytes(), G, seed)
+        z = self.normals.get(zkey)
+        if z is None:  # σ-free, so shared by every evaluation on these samples (σ, walls, beam, sonar model)
+            z = self.normals.put(zkey, np.empty((K, G, N, 3)))
+            rp.pose_normal_table(times, N, G, seed, fl.index, z)
         rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape), fl.walls,
-                       fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt)
+                       fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt, z=z)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:

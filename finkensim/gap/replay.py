@@ -31,7 +31,7 @@ from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
                                      sonar_poses_env, store_ideal)
-from ..sensors.sonar_model import SonarModel, WallGeometry, sonar_scalars, wall_geometry
+from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
 
 
@@ -174,13 +174,18 @@ class PoseNoise(NamedTuple):
 
 
 @njit(cache=True, inline="always")
+def _pose_normals(key, m):
+    """The standard normals (x, y, yaw) of pose draw m in one copter's STREAM_POSE_NOISE cell ``key``."""
+    return normal(key, 3 * m), normal(key, 3 * m + 1), normal(key, 3 * m + 2)
+
+
+@njit(cache=True, inline="always")
 def _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id):
     """Draw m of copter n's true pose at sample k: logged pose + tracking noise (x, y, yaw)."""
     if sigma_xy == 0.0 and sigma_yaw == 0.0:
         return pos[k, n, 0], pos[k, n, 1], yaw[k, n]
-    key = counter_key(seed, flight_id, k, n, STREAM_POSE_NOISE)
-    return (pos[k, n, 0] + sigma_xy * normal(key, 3 * m), pos[k, n, 1] + sigma_xy * normal(key, 3 * m + 1),
-            yaw[k, n] + sigma_yaw * normal(key, 3 * m + 2))
+    zx, zy, zw = _pose_normals(counter_key(seed, flight_id, k, n, STREAM_POSE_NOISE), m)
+    return pos[k, n, 0] + sigma_xy * zx, pos[k, n, 1] + sigma_xy * zy, yaw[k, n] + sigma_yaw * zw
 
 
 @njit(cache=True, inline="always")
@@ -191,6 +196,36 @@ def draw_poses(pos, yaw, k, m, noise, pos_out, yaw_out):
         pos_out[n, 0] = x
         pos_out[n, 1] = y
         yaw_out[n] = w
+
+
+@njit(cache=True, parallel=True)
+def pose_normal_table(times, N, G, seed, flight_id, out):
+    """The standard normals of pose draws m < G of every copter at each sample in ``times`` → out (K, G, N, 3)
+    (x, y, yaw; those :func:`draw_poses` scales by the pose noise). They do not depend on σ: the evaluations of
+    a fit that moves σ, the walls or the beam share one table."""
+    for ti in prange(times.shape[0]):
+        for n in range(N):
+            key = counter_key(seed, flight_id, times[ti], n, STREAM_POSE_NOISE)
+            for m in range(G):
+                zx, zy, zw = _pose_normals(key, m)
+                out[ti, m, n, 0] = zx
+                out[ti, m, n, 1] = zy
+                out[ti, m, n, 2] = zw
+
+
+@njit(cache=True, inline="always")
+def _draw_poses_from(pos, yaw, k, z, sigma_xy, sigma_yaw, pos_out, yaw_out):
+    """:func:`draw_poses` with the draw's normals z (N, 3) from :func:`pose_normal_table` (the same numbers)."""
+    exact = sigma_xy == 0.0 and sigma_yaw == 0.0
+    for n in range(pos.shape[1]):
+        if exact:
+            pos_out[n, 0] = pos[k, n, 0]
+            pos_out[n, 1] = pos[k, n, 1]
+            yaw_out[n] = yaw[k, n]
+        else:
+            pos_out[n, 0] = pos[k, n, 0] + sigma_xy * z[n, 0]
+            pos_out[n, 1] = pos[k, n, 1] + sigma_xy * z[n, 1]
+            yaw_out[n] = yaw[k, n] + sigma_yaw * z[n, 2]
 
 
 # --------------------------------------------------------------------------------------- sonar
@@ -208,13 +243,14 @@ class ReplayPoses(NamedTuple):
 
 
 @njit(cache=True)
-def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kind, out_xtalk):
+def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_kind, out_xtalk):
     """The M pose draws at sample k into row ti of the outputs, for the rays with need[ti, n, s] (the others get
     NaN, HIT_NONE, inf): the plates (which no pose draw moves) are placed once, the work arrays allocated once."""
     N = poses.pos.shape[1]
     mount_yaw = sp.mount_yaw
     rays = sp.ray_angles
     sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
+    geometric = sps.crosstalk & CROSSTALK_GEOMETRIC  # only geometric cross-talk reads the paths
     S = mount_yaw.shape[0]
     P = w.plate_a.shape[0]
     pos_m = np.empty((N, 2))
@@ -236,9 +272,10 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
         pb[p, 1] += b * w.normal[p, 1]
     bands = plate_bands(pa, pb, w.width, w.length)
     for m in range(M):
-        draw_poses(poses.pos, poses.yaw, k, m, noise, pos_m, yaw_m)
+        _draw_poses_from(poses.pos, poses.yaw, k, z[ti, m], noise.sigma_xy, noise.sigma_yaw, pos_m, yaw_m)
         sonar_poses_env(pos_m, yaw_m, sp, buf)
-        fire_slots_env(noise.seed, noise.flight_id, k, sps, slots, m)
+        if geometric:
+            fire_slots_env(noise.seed, noise.flight_id, k, sps, slots, m)
         for n in range(N):
             for s in range(S):
                 if not need[ti, n, s]:
@@ -251,27 +288,39 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, ti, need, out_dist, out_kin
                 store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1)
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1) if geometric else np.inf
 
 
-@njit(cache=True, parallel=True)
-def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk):
+def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk, z=None):
     """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``, computed
     with the simulator's own kernels (:mod:`finkensim.sensors.sonar_kernels`).
 
     poses: :class:`ReplayPoses`; w: the :class:`~finkensim.sensors.sonar_model.WallGeometry`; sp: the
     :class:`~finkensim.sensors.sonar_model.SonarModel` (mounting, offset and radius from the log; its beam
     rays, range, cone and schedule); gain scales the plate displacement
-    (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`.
+    (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`; z: the pose draws'
+    normals, :func:`pose_normal_table` (times, N, M, noise.seed, noise.flight_id) (computed here if None).
     Writes out_dist (K, N, S, M) m (max_range when no echo), out_kind (K, N, S, M) (HIT_*), out_xtalk
     (K, N, S, M) m: the shortest emitter → receiver path heard under geometric cross-talk
     (:func:`~finkensim.sensors.sonar_kernels.crosstalk_path`) among the copters firing in the receiver's
     slot — the slots of draw m use uniform m of each copter's schedule cell, so the ensemble spreads over
-    the schedules a random-offset sonar may have used; inf if none. Only the rays with need (K, N, S) bool are
+    the schedules a random-offset sonar may have used; inf if none, and everywhere when ``sp`` models no geometric
+    cross-talk (nothing reads the paths then). Only the rays with need (K, N, S) bool are
     cast (a fit scores a subset of the readings); the others read NaN, HIT_NONE and inf.
     """
+    if z is None:
+        z = np.empty((times.shape[0], M, poses.pos.shape[1], 3))
+        pose_normal_table(times, poses.pos.shape[1], M, noise.seed, noise.flight_id, z)
+    if z.shape != (times.shape[0], M, poses.pos.shape[1], 3):
+        raise ValueError(f"pose normals z {z.shape}: expected (K, M, N, 3) = {(times.shape[0], M, poses.pos.shape[1], 3)}")
+    _sonar_draws(poses, w, sp, gain, times, noise, M, z, need, out_dist, out_kind, out_xtalk)
+
+
+@njit(cache=True, parallel=True)
+def _sonar_draws(poses, w, sp, gain, times, noise, M, z, need, out_dist, out_kind, out_xtalk):
+    """The loop of :func:`sonar_draws` over its times."""
     for ti in prange(times.shape[0]):
-        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, ti, need, out_dist, out_kind, out_xtalk)
+        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, z, ti, need, out_dist, out_kind, out_xtalk)
 
 
 @njit(cache=True)
