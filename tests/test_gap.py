@@ -218,7 +218,7 @@ def test_pose_draws_from_the_normal_table_equal_the_keyed_draws(seed, sx, sy):
         for m in range(G):
             p1, w1, p2, w2 = np.empty((N, 2)), np.empty(N), np.empty((N, 2)), np.empty(N)
             rp.draw_poses(pos, yaw, k, m, noise, p1, w1)
-            rp._draw_poses_from(pos, yaw, k, z[ti, m], sx, sy, p2, w2)
+            rp.draw_poses_from(pos, yaw, k, z[ti, m], sx, sy, p2, w2)
             assert p1.tobytes() == p2.tobytes() and w1.tobytes() == w2.tobytes()
 
 

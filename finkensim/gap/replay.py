@@ -27,12 +27,12 @@ from ..flightlog import FlightLog
 from ..flightlog.messages import plural
 from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
-from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
 from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
                                      sonar_poses_env, store_ideal)
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
+from .pose_noise import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
 
 
 class GapInputError(ValueError):
@@ -158,76 +158,6 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
     return flights
 
 
-# --------------------------------------------------------------------------------------- pose draws
-
-class PoseNoise(NamedTuple):
-    """Tracking noise of a flight's logged poses and the keys of its pose draws.
-
-    sigma_xy m, sigma_yaw rad: standard deviations; seed and flight_id key the draws
-    (``counter_key(seed, flight_id, sample, copter, STREAM_POSE_NOISE)``, normals 3m, 3m+1, 3m+2 of draw m).
-    """
-
-    sigma_xy: float
-    sigma_yaw: float
-    seed: int
-    flight_id: int
-
-
-@njit(cache=True, inline="always")
-def _pose_normals(key, m):
-    """The standard normals (x, y, yaw) of pose draw m in one copter's STREAM_POSE_NOISE cell ``key``."""
-    return normal(key, 3 * m), normal(key, 3 * m + 1), normal(key, 3 * m + 2)
-
-
-@njit(cache=True, inline="always")
-def _pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id):
-    """Draw m of copter n's true pose at sample k: logged pose + tracking noise (x, y, yaw)."""
-    if sigma_xy == 0.0 and sigma_yaw == 0.0:
-        return pos[k, n, 0], pos[k, n, 1], yaw[k, n]
-    zx, zy, zw = _pose_normals(counter_key(seed, flight_id, k, n, STREAM_POSE_NOISE), m)
-    return pos[k, n, 0] + sigma_xy * zx, pos[k, n, 1] + sigma_xy * zy, yaw[k, n] + sigma_yaw * zw
-
-
-@njit(cache=True, inline="always")
-def draw_poses(pos, yaw, k, m, noise, pos_out, yaw_out):
-    """Draw m of every copter's true pose at sample k → pos_out (N, 2) m, yaw_out (N,) rad."""
-    for n in range(pos.shape[1]):
-        x, y, w = _pose_draw(pos, yaw, k, n, m, noise.sigma_xy, noise.sigma_yaw, noise.seed, noise.flight_id)
-        pos_out[n, 0] = x
-        pos_out[n, 1] = y
-        yaw_out[n] = w
-
-
-@njit(cache=True, parallel=True)
-def pose_normal_table(times, N, G, seed, flight_id, out):
-    """The standard normals of pose draws m < G of every copter at each sample in ``times`` → out (K, G, N, 3)
-    (x, y, yaw; those :func:`draw_poses` scales by the pose noise). They do not depend on σ: the evaluations of
-    a fit that moves σ, the walls or the beam share one table."""
-    for ti in prange(times.shape[0]):
-        for n in range(N):
-            key = counter_key(seed, flight_id, times[ti], n, STREAM_POSE_NOISE)
-            for m in range(G):
-                zx, zy, zw = _pose_normals(key, m)
-                out[ti, m, n, 0] = zx
-                out[ti, m, n, 1] = zy
-                out[ti, m, n, 2] = zw
-
-
-@njit(cache=True, inline="always")
-def _draw_poses_from(pos, yaw, k, z, sigma_xy, sigma_yaw, pos_out, yaw_out):
-    """:func:`draw_poses` with the draw's normals z (N, 3) from :func:`pose_normal_table` (the same numbers)."""
-    exact = sigma_xy == 0.0 and sigma_yaw == 0.0
-    for n in range(pos.shape[1]):
-        if exact:
-            pos_out[n, 0] = pos[k, n, 0]
-            pos_out[n, 1] = pos[k, n, 1]
-            yaw_out[n] = yaw[k, n]
-        else:
-            pos_out[n, 0] = pos[k, n, 0] + sigma_xy * z[n, 0]
-            pos_out[n, 1] = pos[k, n, 1] + sigma_xy * z[n, 1]
-            yaw_out[n] = yaw[k, n] + sigma_yaw * z[n, 2]
-
-
 # --------------------------------------------------------------------------------------- sonar
 
 class ReplayPoses(NamedTuple):
@@ -272,7 +202,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
         pb[p, 1] += b * w.normal[p, 1]
     bands = plate_bands(pa, pb, w.width, w.length)
     for m in range(M):
-        _draw_poses_from(poses.pos, poses.yaw, k, z[ti, m], noise.sigma_xy, noise.sigma_yaw, pos_m, yaw_m)
+        draw_poses_from(poses.pos, poses.yaw, k, z[ti, m], noise.sigma_xy, noise.sigma_yaw, pos_m, yaw_m)
         sonar_poses_env(pos_m, yaw_m, sp, buf)
         if geometric:
             fire_slots_env(noise.seed, noise.flight_id, k, sps, slots, m)
@@ -510,10 +440,10 @@ def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, need, out):
                 out[ti, n, 1, m] = np.nan
                 out[ti, n, 2, m] = np.nan
                 continue
-            x1, y1, w1 = _pose_draw(pos, yaw_unwrapped, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            x0, y0, _ = _pose_draw(pos, yaw_unwrapped, k - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            a1, b1, w0 = _pose_draw(pos, yaw_unwrapped, k0, n, m, sigma_xy, sigma_yaw, seed, flight_id)
-            a0, b0, _ = _pose_draw(pos, yaw_unwrapped, k0 - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            x1, y1, w1 = pose_draw(pos, yaw_unwrapped, k, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            x0, y0, _ = pose_draw(pos, yaw_unwrapped, k - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            a1, b1, w0 = pose_draw(pos, yaw_unwrapped, k0, n, m, sigma_xy, sigma_yaw, seed, flight_id)
+            a0, b0, _ = pose_draw(pos, yaw_unwrapped, k0 - b, n, m, sigma_xy, sigma_yaw, seed, flight_id)
             out[ti, n, 0, m] = (x1 - x0) / d1 - (a1 - a0) / d0
             out[ti, n, 1, m] = (y1 - y0) / d1 - (b1 - b0) / d0
             out[ti, n, 2, m] = w1 - w0
