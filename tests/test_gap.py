@@ -17,14 +17,17 @@ from finkensim.config import Config, ConfigError, config_from_dict
 from finkensim.gap import replay as rp
 from finkensim.gap import Diagnosis, GapReport, diagnose, run_diagnosis
 from finkensim.gap.features import sonar_channel_names
-from finkensim.gap.model import gaussian_draws, sonar_reading_draws
+from finkensim.gap.model import gaussian_draws, sonar_echo_errors, sonar_reading_draws
 from finkensim.gap.replay import GapInputError
 from finkensim.gap.report import SPEC_KEYS, spec_report
 from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
                                    gap_ensemble)
 from finkensim.gap.stats import BlockBootstrap, fdr_significant, time_blocks
 from finkensim.gap.validate import CASES, generate
-from finkensim.sensors.sonar_model import CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, wall_geometry
+from finkensim.kernels.rng import STREAM_EFFECT, counter_key
+from finkensim.sensors.sonar_kernels import measured_reading
+from finkensim.sensors.sonar_model import (CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, sonar_scalars,
+                                           wall_geometry)
 from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
 from tests.naive import gap as naive
 from tests.stats import assert_above_se, assert_mean_within_se, assert_proportion_within_se, se_mean
@@ -359,8 +362,17 @@ def test_sonar_reading_draws_match_the_simulator_reference(err, flags, p_const, 
     sp = SonarModel.from_config(Config())._replace(error=err, crosstalk=flags, crosstalk_probability=p_const,
                                                    crosstalk_hear_probability=q_hear, range_scale=scale, bias=bias)
     out = np.empty((n, M))
-    sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp, out)
+    errors = np.full((n, M), np.nan)  # drawn once (the diagnosis keeps them for every fit of other parameters)
+    if err != 0:
+        sonar_echo_errors(fl, ti, ch, 11, sp, errors)
+    sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp, errors, out)
     np.testing.assert_allclose(out, naive.sonar_reading_draws(dist, kind, xt, fl, ti, ch, 11, sp), rtol=1e-12, atol=1e-15)
+    # the reading with a pre-drawn error is the simulator's reading (which draws it itself), bit for bit
+    sps = sonar_scalars(sp)
+    for i in range(0, n, 7):
+        key = np.uint64(counter_key(11, fl[i], ti[i], ch[i], STREAM_EFFECT))
+        for m in range(M):
+            assert out[i, m] == measured_reading(dist[i, m], kind[i, m] != 0, xt[i, m], key, m, sps)
 
 
 def test_gaussian_draws_match_the_counter_based_reference():

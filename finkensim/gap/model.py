@@ -26,10 +26,10 @@ from ..kernels.rng import STREAM_EFFECT, counter_key, normal
 from ..sensors.imu import ImuModel
 from ..sensors.ranging import RangingModel
 from ..kernels.raycast import HIT_NONE
-from ..sensors.sonar_kernels import measured_reading
-from ..sensors.sonar_model import SonarModel, rayleigh_std, sonar_scalars
+from ..sensors.sonar_kernels import echo_error, measured_reading
+from ..sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
-__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_reading_draws", "gaussian_draws"]
+__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,18 +125,36 @@ def _hashable(v):
 
 
 @njit(cache=True, parallel=True)
-def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, out):
+def sonar_echo_errors(flight, tidx, chan, seed, sp, out):
+    """The echo errors (m) of the reading draws out (n, M) (:func:`~finkensim.sensors.sonar_kernels.echo_error`,
+    keyed as in :func:`sonar_reading_draws`). They depend on the error model's parameters only, so every
+    evaluation of a fit that leaves those alone shares them. ``sp.error`` must not be ERROR_NONE."""
+    n, M = out.shape
+    sps = sonar_scalars(sp)
+    for i in prange(n):
+        key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
+        for m in range(M):
+            out[i, m] = echo_error(key, m, sps)
+
+
+@njit(cache=True, parallel=True)
+def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, err, out):
     """Reading draws out (n, M) m from ideal draws dist (n, M) m, kind (n, M) (HIT_*), xtalk (n, M) m
     (cross-talk path, inf if none) with the simulator's error model ``sp`` (a SonarModel).
 
-    Row i draws from ``counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)``, draw m from block m.
+    Row i draws from ``counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)``, draw m from block m;
+    err (n, M) m: the echo errors from :func:`sonar_echo_errors` (not read when ``sp.error`` is ERROR_NONE).
     """
     n, M = dist.shape
     sps = sonar_scalars(sp)  # the per-reading calls take the scalars only (see SonarScalars)
     for i in prange(n):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
-        for m in range(M):
-            out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps)
+        if sps.error == ERROR_NONE:
+            for m in range(M):
+                out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps)
+        else:
+            for m in range(M):
+                out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps, err[i, m])
 
 
 @njit(cache=True, parallel=True)

@@ -16,10 +16,10 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config
-from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SCHEDULE_RANDOM_OFFSET, SonarModel
+from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate, sonar_channel_names, speed, wall_distance
-from .model import ModelParams, gaussian_draws, lag_steps, sonar_reading_draws
+from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -149,6 +149,7 @@ class Table:
     splits: LRU = field(default_factory=lambda: LRU(8), repr=False)  # rows split by flight
     gathered: LRU = field(default_factory=lambda: LRU(4), repr=False)  # per-row ideal draws (large: few kept)
     normals: LRU = field(default_factory=lambda: LRU(4), repr=False)  # pose draws' normals per flight and samples
+    errors: LRU = field(default_factory=lambda: LRU(4), repr=False)  # sonar echo errors per row set and error model
 
     @property
     def n(self) -> int:
@@ -245,7 +246,15 @@ class SonarTable(Table):
         (dist, kind, xt), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp), M)
         out = np.empty((rows.size, M))
         chan = self.copter[rows] * 64 + self.channel[rows]
-        sonar_reading_draws(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, p.sonar, out)
+        sp = p.sonar
+        err = np.empty((0, M))
+        if sp.error != ERROR_NONE:  # the errors of these rows' draws, shared by fits of other parameters
+            ekey = ("echo errors", _rows_key(rows), rows.size, M, seed, sp.error, sp.sigma, sp.rayleigh_s, sp.rayleigh_sign)
+            err = self.errors.get(ekey)
+            if err is None:
+                err = self.errors.put(ekey, np.empty((rows.size, M)))
+                sonar_echo_errors(self.flight[rows], self.time[rows], chan, seed, sp, err)
+        sonar_reading_draws(dist, kind, xt, self.flight[rows], self.time[rows], chan, seed, sp, err, out)
         return out, period
 
 

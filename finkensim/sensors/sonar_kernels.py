@@ -34,7 +34,7 @@ from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, E
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 
 __all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
-           "fire_slots_env", "crosstalk_path", "echo_reading", "clamp_reading", "measured_reading",
+           "fire_slots_env", "crosstalk_path", "echo_error", "echo_reading", "clamp_reading", "measured_reading",
            "ultrasonic_env", "down_env"]
 
 #: Uniform index (inside sonar k's block 8k … 8k + 7 of a STREAM_SONAR cell) of the coin that decides
@@ -289,24 +289,34 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand):
 # the error model of one reading
 
 @njit(cache=True, inline="always")
-def echo_reading(d, echo, key, k, sp):
+def echo_error(key, k, sp):
+    """The random error (m) of an echo reading of sonar k under ``sp.error`` (random numbers of block k of
+    ``key``); :func:`echo_reading` adds it to range_scale · d + bias. Not for ``ERROR_NONE`` (no error drawn)."""
+    if sp.error == ERROR_GAUSSIAN:
+        return sp.sigma * normal(key, 4 * k + 1)
+    u = uniform(key, 8 * k + 1)
+    R = np.sqrt(-2.0 * sp.sigma * sp.sigma * np.log(u))
+    if sp.error == ERROR_SEED:
+        return R - sp.rayleigh_s
+    return sp.rayleigh_sign * (R - sp.rayleigh_s)
+
+
+@njit(cache=True, inline="always")
+def echo_reading(d, echo, key, k, sp, err=None):
     """Echo reading (m, unclamped) of sonar k for true distance d; ``echo`` False → max_range exactly.
 
-    An echo reads range_scale · d + bias plus the error of ``sp.error`` (random numbers of block k of
-    ``key``, see :mod:`finkensim.sensors.ultrasonic`).
+    An echo reads range_scale · d + bias plus the error of ``sp.error`` (:func:`echo_error`: random numbers of
+    block k of ``key``, see :mod:`finkensim.sensors.ultrasonic`), or plus ``err`` m when given (that error drawn
+    beforehand, e.g. once for many evaluations of other parameters).
     """
     if not echo:
         return sp.max_range
     y = d * sp.range_scale + sp.bias
     if sp.error == ERROR_NONE:
         return y
-    if sp.error == ERROR_GAUSSIAN:
-        return y + sp.sigma * normal(key, 4 * k + 1)
-    u = uniform(key, 8 * k + 1)
-    R = np.sqrt(-2.0 * sp.sigma * sp.sigma * np.log(u))
-    if sp.error == ERROR_SEED:
-        return y + (R - sp.rayleigh_s)
-    return y + sp.rayleigh_sign * (R - sp.rayleigh_s)
+    if err is None:
+        return y + echo_error(key, k, sp)
+    return y + err
 
 
 @njit(cache=True, inline="always")
@@ -316,18 +326,19 @@ def clamp_reading(y, sp):
 
 
 @njit(cache=True, inline="always")
-def measured_reading(d, echo, path, key, k, sp):
+def measured_reading(d, echo, path, key, k, sp, err=None):
     """The measured reading (m, clamped) of one sonar: echo error, then cross-talk, then the clamp.
 
     d m true distance (max_range without an echo); echo: an echo within range; path m: the shortest
     cross-talk path heard (:func:`crosstalk_path`; inf if none or not geometric); key, k: the random
-    numbers (block k of the STREAM_SONAR cell ``key``). Constant cross-talk replaces the reading by d/2
+    numbers (block k of the STREAM_SONAR cell ``key``); err: the echo's error if drawn beforehand
+    (:func:`echo_reading`). Constant cross-talk replaces the reading by d/2
     with probability ``crosstalk_probability``; geometric cross-talk reads path/2 + jitter when that
     arrives first (heard with probability ``crosstalk_hear_probability``). A cross-talk reading is an
     echo time converted like any other, so ``range_scale`` and ``bias`` apply to it too: range_scale · d/2
     + bias (they are 1 and 0 unless the gap diagnosis fits them, and then the reading is d/2 exactly).
     """
-    y = echo_reading(d, echo, key, k, sp)
+    y = echo_reading(d, echo, key, k, sp, err)
     if sp.crosstalk & CROSSTALK_CONSTANT:
         if uniform(key, 8 * k) < sp.crosstalk_probability:
             y = 0.5 * d * sp.range_scale + sp.bias
