@@ -31,12 +31,18 @@ def pose_normals(key, m):
 
 
 @njit(cache=True, inline="always")
+def noisy_pose(pos, yaw, k, n, sigma_xy, sigma_yaw, zx, zy, zw):
+    """Copter n's logged pose at sample k moved by the tracking noise σ·z of standard normals (zx, zy, zw)."""
+    return pos[k, n, 0] + sigma_xy * zx, pos[k, n, 1] + sigma_xy * zy, yaw[k, n] + sigma_yaw * zw
+
+
+@njit(cache=True, inline="always")
 def pose_draw(pos, yaw, k, n, m, sigma_xy, sigma_yaw, seed, flight_id):
     """Draw m of copter n's true pose at sample k: logged pose + tracking noise (x, y, yaw)."""
     if sigma_xy == 0.0 and sigma_yaw == 0.0:
         return pos[k, n, 0], pos[k, n, 1], yaw[k, n]
     zx, zy, zw = pose_normals(counter_key(seed, flight_id, k, n, STREAM_POSE_NOISE), m)
-    return pos[k, n, 0] + sigma_xy * zx, pos[k, n, 1] + sigma_xy * zy, yaw[k, n] + sigma_yaw * zw
+    return noisy_pose(pos, yaw, k, n, sigma_xy, sigma_yaw, zx, zy, zw)
 
 
 @njit(cache=True, inline="always")
@@ -70,10 +76,9 @@ def draw_poses_from(pos, yaw, k, z, sigma_xy, sigma_yaw, pos_out, yaw_out):
     exact = sigma_xy == 0.0 and sigma_yaw == 0.0
     for n in range(pos.shape[1]):
         if exact:
-            pos_out[n, 0] = pos[k, n, 0]
-            pos_out[n, 1] = pos[k, n, 1]
-            yaw_out[n] = yaw[k, n]
+            x, y, w = pos[k, n, 0], pos[k, n, 1], yaw[k, n]
         else:
-            pos_out[n, 0] = pos[k, n, 0] + sigma_xy * z[n, 0]
-            pos_out[n, 1] = pos[k, n, 1] + sigma_xy * z[n, 1]
-            yaw_out[n] = yaw[k, n] + sigma_yaw * z[n, 2]
+            x, y, w = noisy_pose(pos, yaw, k, n, sigma_xy, sigma_yaw, z[n, 0], z[n, 1], z[n, 2])
+        pos_out[n, 0] = x
+        pos_out[n, 1] = y
+        yaw_out[n] = w
