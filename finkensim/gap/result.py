@@ -51,7 +51,9 @@ class GapDetails:
     held-out mean of E|X − y| − E|X − X'| (zero-mean when the logs could have come from the model; the
     significance test) and its CI; best_score: the best held-out score of any predictive built (the
     reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
-    score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None.
+    score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None; targeted: when the omnibus
+    test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.selection.run_diagnosis`),
+    {effect, sensors, improvement, ci, p, threshold, passed}, else None.
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -78,6 +80,7 @@ class GapDetails:
     best_score: float = math.nan
     censoring: dict = field(default_factory=dict)
     correction: object = None
+    targeted: dict | None = None
 
 
 @dataclass
