@@ -374,7 +374,10 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, p
     return {
         "case": name, "seed": seed, "truth": {k: v_ for k, v_ in truth.items()},
         "conventions": (conventions or DEFAULT_CONVENTIONS).to_dict(),
-        "significant": v["significant_gap"], "named": named, "effects": list(v["effects"]),
+        "significant": v["significant_gap"], "found_by": None if not v["significant_gap"] else (
+            "targeted" if report.details.targeted is not None else "omnibus"),
+        "targeted_p": report.details.targeted["p"] if report.details.targeted is not None else math.nan,
+        "named": named, "effects": list(v["effects"]),
         "ambiguous": list(v["ambiguous"]), "unexplained": v["unexplained"], "correct": bool(correct),
         "flagged_locations": sum(bool(loc.get("significant")) for loc in report["locations"]),
         "location_ok": location_ok(report, case, truth), "param_error": param_error(report, case, truth),
@@ -407,6 +410,8 @@ def confusion(rows: list[dict]):
         df["flagged_locations"] = math.nan
     if "correction_shrink" not in df:
         df["correction_shrink"] = math.nan
+    if "found_by" not in df:  # rows from before the targeted test
+        df["found_by"] = None
     df["verdict"] = [("no gap" if not r["significant"] else ("unexplained" if r["unexplained"] else r["named"]))
                      for r in rows]
     summary = df.groupby("case", sort=False).agg(
@@ -415,27 +420,27 @@ def confusion(rows: list[dict]):
         param_error_median=("param_error", "median"), shrink_mean=("shrink_heldout", "mean"),
         shrink_max=("shrink_heldout", "max"), correction_shrink=("correction_shrink", "mean"),
         flagged_none=("flagged_locations", lambda s: float((s.fillna(0) == 0).mean())),
-        seconds_mean=("seconds", "mean"))
+        targeted=("found_by", lambda s: int((s == "targeted").sum())), seconds_mean=("seconds", "mean"))
 
     def pct(x):
         return "n/a" if x != x else f"{x:.0%}"
 
     lines = ["| case | trials | correct (Wilson 95 % CI) | no location flagged | location right | parameter error "
-             "(median) | shrink mean / max | correction shrink | s per trial |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "(median) | shrink mean / max | correction shrink | found by the targeted test | s per trial |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for case, r in summary.iterrows():
         lo, hi = wilson(int(r["correct_n"]), int(r["trials"]))
         pe = "n/a" if r["param_error_median"] != r["param_error_median"] else f"{r['param_error_median']:.1%}"
         lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | {pct(r['flagged_none'])} | "
                      f"{pct(r['location_right'])} | {pe} | {r['shrink_mean']:.2f} / {r['shrink_max']:.2f} | "
-                     f"{pct(r['correction_shrink'])} | {r['seconds_mean']:.0f} |")
+                     f"{pct(r['correction_shrink'])} | {int(r['targeted'])} | {r['seconds_mean']:.0f} |")
     n, k = len(df), int(df["correct"].sum())
     lo, hi = wilson(k, n)
     loc = df["location_ok"].dropna().astype(float)
     lines.append(f"| **all {summary.shape[0]} cases** | {n} | {k / n:.1%} ({lo:.1%}–{hi:.1%}) | "
                  f"{pct(float((df['flagged_locations'].fillna(0) == 0).mean()))} | "
                  f"{pct(loc.mean() if len(loc) else float('nan'))} | | {df['shrink_heldout'].mean():.2f} / "
-                 f"{df['shrink_heldout'].max():.2f} | | {df['seconds'].mean():.0f} |")
+                 f"{df['shrink_heldout'].max():.2f} | | {int((df['found_by'] == 'targeted').sum())} | {df['seconds'].mean():.0f} |")
     mat = pd.crosstab(df["case"], df["verdict"]).reindex(summary.index)
     lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict, the first effect named):", ""]
     cols = list(mat.columns)
