@@ -61,6 +61,16 @@ def test_a_clear_structured_improvement_reveals_a_gap_on_its_sensors(setting):
     assert t["improvement"] == pytest.approx(0.005, abs=5e-4) and t["p"] < 1e-6
 
 
+def test_the_gap_lies_on_the_sensors_the_effect_improves_by_themselves(setting):
+    rng, base, rows, cfg = setting
+    lag = FitResult("latency", {}, None, math.nan, rows_score={
+        **base, "ranging": base["ranging"] - (0.02 + 0.01 * rng.standard_normal(N))})  # a lag on the radio only
+    t = S._targeted_test(_IidDiag(), [lag], base, rows, cfg)
+    assert t is not None and t["sensors"] == ["ranging"], t
+    both = _fit("latency", base, 0.02, rng)  # improves every sensor it acts on
+    assert S._targeted_test(_IidDiag(), [both], base, rows, cfg)["sensors"] == ["ultrasonic", "ranging", "imu"]
+
+
 def test_catch_alls_never_reveal_a_gap(setting):
     rng, base, rows, cfg = setting
     # a noise scale, a constant bias and pose noise absorb recording conventions: even a large improvement is not a gap

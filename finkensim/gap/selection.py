@@ -92,9 +92,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
             pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], current)) for r in again),
                           key=lambda r: r.score_heldout)
             evaluated += [r.rows_score for r in pool]
-        # a gap found by the targeted test lies where that test looked: the first effect acts on its sensors
-        best = _pick(pool if added or targeted is None else _on_sensors(pool, gap_sensors), cur_score,
-                     cfg.tie_tolerance)
+        # a gap found by the targeted test is what the passing effects describe: the first is one of them
+        best = _pick(pool if added or targeted is None else _passed(pool, targeted), cur_score, cfg.tie_tolerance)
         imp, imp_ci, imp_p = improvement(cur_scores, best.rows_score)
         # the largest share of a gap sensor's configured-model gap this step removes (not of what is left: a
         # small misfit of the first effect must not let a catch-all in as a second one; per sensor: an effect on
@@ -118,7 +117,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         if not (np.isfinite(imp_p) and imp_p < cfg.alpha and imp > 0 and (material or further)):
             break
         if not added:
-            ambiguous = _near_ties(pool if targeted is None else _on_sensors(pool, gap_sensors), best, cur_score,
+            ambiguous = _near_ties(pool if targeted is None else _passed(pool, targeted), best, cur_score,
                                    cfg.tie_tolerance)
         elif len(added) == 1:  # the runners-up of the second pick, fitted on top of the first: its alternatives
             runners_up = [r for r in pool if r.name != best.name]
@@ -266,10 +265,13 @@ def _targeted_test(diag, first, base_scores: dict, rows_ho: dict, cfg) -> dict |
     tested = []
     for r in structured:
         sensors = [s for s in fx.REGISTRY[r.name].sensors if s in base_scores and s in r.rows_score]
-        imp, ci, p = diag.overall({s: base_scores[s] - r.rows_score[s] for s in sensors},
-                                  {s: rows_ho[s] for s in sensors})
+        diff = {s: base_scores[s] - r.rows_score[s] for s in sensors}
+        imp, ci, p = diag.overall(diff, {s: rows_ho[s] for s in sensors})
         if np.isfinite(p) and p < threshold and imp >= cfg.accept_improvement:
-            tested.append({"effect": r.name, "sensors": sensors, "improvement": float(imp),
+            # the gap lies on the sensors the effect improves significantly by themselves (a lag fitted per
+            # sensor improves only the late one), or on all of its sensors when none does alone
+            alone = [s for s in sensors if len(sensors) > 1 and _p_positive(diag, diff, rows_ho, s) < threshold]
+            tested.append({"effect": r.name, "sensors": alone or sensors, "improvement": float(imp),
                            "ci": [float(c) for c in ci], "p": float(p), "threshold": threshold})
     if not tested:
         return None
@@ -277,9 +279,15 @@ def _targeted_test(diag, first, base_scores: dict, rows_ho: dict, cfg) -> dict |
     return {**best, "passed": [t["effect"] for t in tested]}
 
 
-def _on_sensors(pool, sensors):
-    """The candidates of ``pool`` acting on one of ``sensors``."""
-    return [r for r in pool if set(fx.REGISTRY[r.name].sensors) & set(sensors)]
+def _p_positive(diag, diff: dict, rows_ho: dict, sensor: str) -> float:
+    """One-sided p-value of a positive mean of ``diff[sensor]`` (NaN-safe: unknown power is never significant)."""
+    _, _, p = diag.overall({sensor: diff[sensor]}, {sensor: rows_ho[sensor]})
+    return p if np.isfinite(p) else 1.0
+
+
+def _passed(pool, targeted):
+    """The candidates of ``pool`` that passed the targeted test."""
+    return [r for r in pool if r.name in targeted["passed"]]
 
 
 def _share(cur: dict, new: dict, sensors, per_sensor) -> float:
