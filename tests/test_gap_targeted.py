@@ -113,3 +113,13 @@ def test_a_ranging_lag_the_omnibus_test_misses_is_found_and_named_latency():
     assert v["significant_gap"] and not v["unexplained"] and v["effect"] == "latency", v
     assert d.gap_sensors == d.targeted["sensors"]
     assert "targeted test" in markdown(rep, {})
+
+
+def test_the_halves_of_a_single_flight_get_no_targeted_test():
+    """They share the flight's slow random state (the IMU bias walk): fitting on one half and improving the other is
+    no evidence of a mismatch, so only the omnibus test decides."""
+    lag = Case("ranging_lag", "latency", lambda r: ({}, _post_latency("ranging", LAG, t := {}), t), "ranging")
+    logs, cfg, _ = generate(lag, LAG_SEED, n_flights=1, duration=30.0)
+    rep = run_diagnosis(Diagnosis(logs, ["a.npz"], cfg.replace(SMALL)))
+    assert rep.details.targeted is None
+    assert rep["verdict"]["significant_gap"] == any(v["significant"] for v in rep.details.per_sensor.values())
