@@ -7,6 +7,9 @@ matrix with more trials is ``finkensim gap-validate`` (README, "Sim-to-real gap"
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
 import pytest
 
 from finkensim.gap import Diagnosis, run_diagnosis
@@ -115,12 +118,15 @@ FOREIGN_TOOL = Conventions(altitude=1.0, sonar_offset=0.1, no_echo="zero", noise
                            n_copters=4, tracking_sigma_xy=0.005)
 
 
-@pytest.mark.parametrize("case", ["null", "wall_bulge"])
-def test_logs_in_another_tools_conventions(case):
-    logs, cfg, _ = generate(CASES[case], SEED, n_flights=2, duration=30.0, conventions=FOREIGN_TOOL)
+@pytest.mark.parametrize("case, conventions", [("null", FOREIGN_TOOL), ("wall_bulge", FOREIGN_TOOL),
+                                               ("null", replace(FOREIGN_TOOL, no_echo="nan"))])
+def test_logs_in_another_tools_conventions(case, conventions):
+    logs, cfg, _ = generate(CASES[case], SEED, n_flights=2, duration=30.0, conventions=conventions)
+    if conventions.no_echo == "nan":  # lost echoes are missing readings, not a value at the limit
+        assert all(np.isnan(log.ultrasonic).any() and not (log.ultrasonic >= cfg.sonar.max_range).any() for log in logs)
     rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg.replace(SMALL)))
     v = rep["verdict"]
-    assert rep.details.censoring["ultrasonic"]["no_echo"] == [0.0]
+    assert rep.details.censoring["ultrasonic"]["no_echo"] == ([0.0] if conventions.no_echo == "zero" else [])
     if case == "null":
         assert not v["significant_gap"] and not any(loc["significant"] for loc in rep["locations"])
     else:

@@ -12,7 +12,7 @@ from finkensim.cli import main
 from finkensim.config import load_config
 from finkensim.flightlog import FlightLog
 from finkensim.gap import validate_sweep
-from finkensim.gap.conventions import NO_ECHO, NOISE, Conventions, draw_conventions
+from finkensim.gap.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
 from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
@@ -61,11 +61,11 @@ def test_case_lists_expand_pairs_once_and_in_order():
 def test_conventions_axis_draws_every_convention_and_rejects_unknown_ones():
     rng = np.random.default_rng(0)
     draws = [draw_conventions(rng) for _ in range(300)]
-    assert {d.no_echo for d in draws} == set(NO_ECHO) and {d.noise for d in draws} == set(NOISE)
+    assert {d.no_echo for d in draws} == set(NO_ECHO_DRAWN) and {d.noise for d in draws} == set(NOISE)
     assert min(d.altitude for d in draws) >= 0.3 and max(d.altitude for d in draws) <= 1.2
     assert {d.n_copters for d in draws} == set(range(3, 11))
     with pytest.raises(ValueError, match="no_echo"):
-        Conventions(no_echo="nan")
+        Conventions(no_echo="none")
 
 
 def _log_with_sonar(y, hit):
@@ -89,6 +89,8 @@ def test_no_echo_conventions_rewrite_only_lost_echoes(no_echo):
         assert np.all(log.ultrasonic[lost] == cfg.sonar.max_range)
     elif no_echo == "zero":
         assert np.all(log.ultrasonic[lost] == 0.0)
+    elif no_echo == "nan":
+        assert np.all(np.isnan(log.ultrasonic[lost]))
     else:
         v = log.ultrasonic[lost]
         assert np.all(v <= cfg.sonar.max_range) and np.all(v > cfg.sonar.max_range - 5 * cfg.sonar.sigma)
