@@ -5,7 +5,9 @@ Every candidate effect is fitted on the training flights and scored on the held-
 added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap — or, after
 the first, improves the held-out score by ``gap.accept_improvement`` (in units of the current model's typical error)
 with a p-value that survives Bonferroni over the candidates — up to ``max_added`` effects. The verdict names the first effect added when the selected effects remove at least
-``gap.unexplained_shrink`` of the gap on the sensors where it is significant, else ``unexplained``.
+``gap.unexplained_shrink`` of the gap on the sensors where it is significant, else ``unexplained``. A gap is
+significant when some sensor's calibration gap is (the omnibus test) or, failing that, when a structured effect's
+training fit improves its sensors' held-out score significantly (the targeted test, :func:`_targeted_test`).
 """
 from __future__ import annotations
 
