@@ -90,6 +90,27 @@ def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_j
     assert 0.7 <= v["shrink_heldout"] <= 1.0
 
 
+@pytest.mark.parametrize("name, step, first", [
+    ("sonar_bias+sound_speed", "joint second", "sound_speed"),  # the bias on top of the factor: 0.0015; jointly 0.0075
+    ("sonar_rayleigh_scale+sonar_bias", "joint lead pair", "sonar_bias")])  # σ × 3.8 and 0.11 m: neither alone is material
+def test_two_effects_that_trade_off_are_found_by_a_joint_fit_when_the_greedy_steps_keep_one_or_none(name, step, first):
+    """Seed 9 of the random conventions axis (validation trials that named the factor alone, and nothing): effects on
+    one sensor trade off, so a conditional fit of the second on top of the first (or of either alone) shows little;
+    fitted jointly both come out near the truth and the pair is kept (:mod:`finkensim.gap.selection`)."""
+    import zlib
+    from finkensim.gap.conventions import draw_conventions
+    conv = draw_conventions(np.random.default_rng([9, zlib.crc32(name.encode())]))
+    logs, cfg, truth = generate(get_case(name), 9, n_flights=2, duration=30.0, conventions=conv)
+    rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg))
+    v = rep["verdict"]
+    assert set(v["effects"]) == set(name.split("+")) and v["effect"] == first and not v["unexplained"], v
+    last = rep.details.waterfall[-1]
+    assert last["step"] == step, [w["step"] for w in rep.details.waterfall]
+    fitted = {f"{e}.{k}": x for e, params in last["params"].items() for k, x in params.items()}
+    for key, value in truth.items():
+        assert abs(fitted[key] / value - 1.0) < 0.15, (key, fitted[key], value)
+
+
 def test_a_noise_scale_beside_a_dominant_effect_is_measured_against_what_the_first_effect_left():
     """crosstalk_geometric + sonar_rayleigh_scale, seed 0 of the random conventions axis (Laplace noise; a validation
     trial that named cross-talk alone): after the cross-talk, the noise scale improves the held-out score by 0.0021
