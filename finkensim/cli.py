@@ -266,6 +266,11 @@ def _add_gap(sub) -> None:
 
 def cmd_gap(args) -> int:
     prog = args.prog
+    # The diagnosis runs many short parallel kernels; OpenMP's idle threads spin between them by default, which
+    # costs nothing on a quiet machine and a lot when other processes share the cores (examples/gap_timing.py
+    # beside a two-worker sweep: 47.6 s spinning, 29.7 s sleeping; 17.0 and 16.9 s on the quiet machine). Read
+    # when OpenMP starts, i.e. at the first parallel kernel; a policy the user set wins.
+    os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     from .config import ConfigError, load_config
     from .flightlog import FlightLogError, load
     from .gap import Diagnosis, run_diagnosis

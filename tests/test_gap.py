@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -501,6 +502,19 @@ def test_cli_gap_end_to_end_and_errors(null_logs, tmp_path, capsys):
     assert "gap.draws = 2" in capsys.readouterr().err
     assert main(["gap", *paths, "--config", str(conf), "--heldout", "nope.npz", "--out", str(out)]) == 2
 
+
+
+def test_gap_command_lets_idle_openmp_threads_sleep_unless_the_user_chose(tmp_path, monkeypatch):
+    """`finkensim gap` asks OpenMP for the passive wait policy (idle threads sleep instead of spinning: the same
+    speed on a quiet machine, much faster on a shared one) before its first parallel kernel; a user's own setting
+    stays. (The policy changes no result: every parallel loop of the diagnosis is per element.)"""
+    missing = str(tmp_path / "missing.npz")
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    assert main(["gap", missing]) == 2
+    assert os.environ["OMP_WAIT_POLICY"] == "passive"
+    monkeypatch.setenv("OMP_WAIT_POLICY", "active")
+    assert main(["gap", missing]) == 2
+    assert os.environ["OMP_WAIT_POLICY"] == "active"
 
 def test_every_model_parameter_belongs_to_exactly_one_sensor_for_score_caching():
     from dataclasses import fields
