@@ -18,6 +18,7 @@ from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_p
 from finkensim.sensors.ranging import RangingModel
 from finkensim.sensors.ranging_kernels import ranging_grid_env
 from finkensim.swarm import SwarmSim
+from finkensim.swarm.state import concat_records
 from finkensim.world import World
 
 
@@ -162,12 +163,21 @@ def test_without_recorded_ranging_the_grid_leaves_out_of_range_columns_and_nothi
     """With the grid on and the ranging not recorded, the wall check reads only the ranging columns in range, so
     the engine does not fill the others with max_range at every step (10⁸ writes per step at N = 10 000): the
     flight — poses, sonar, wall flags and every counter — is the brute force's (which fills and reads every column),
-    bit for bit."""
+    bit for bit. The rows are the sim's buffer, kept between rollouts: poisoned with NaN beforehand and reused by
+    three consecutive rollouts, they still give the brute force's flight (no entry is read before it is written)."""
     cfg = Config().replace({**CROWDED, "behaviour.kind": "attraction_repulsion", "behaviour.wall_check": check})
     grid = SwarmSim(cfg.replace({"simulation.grid_min_copters": 0}))
     brute = SwarmSim(cfg)
     names = ["pose", "sonar", "wall"]
-    (s_g, r_g), (s_b, r_b) = [sim.rollout(sim.init(n_envs=2, seed=5), 120, record=names) for sim in (grid, brute)]
+    s_b, r_b = brute.rollout(brute.init(n_envs=2, seed=5), 120, record=names)
+    rows = grid._ranging_rows(2, 40, 40)
+    rows[:] = np.nan
+    s_g, parts = grid.init(n_envs=2, seed=5), []
+    for _ in range(3):
+        s_g, r = grid.rollout(s_g, 40, record=names)
+        parts.append(r)
+    assert grid._ranging_rows(2, 40, 40) is rows and np.isnan(rows).any()  # reused; columns out of range untouched
+    r_g = concat_records(parts)
     assert r_g.ranging is None or r_g.ranging.size == 0
     assert r_b.counters["wall_readings"].sum() > 0  # the check judged readings
     for name in r_b.counters:

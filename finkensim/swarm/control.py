@@ -27,7 +27,7 @@ from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.twin import INTERNAL
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
 from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, step_twin
-from .state import RunSpec, SwarmState
+from .state import NO_RANGING_ROWS, RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
 
@@ -165,7 +165,7 @@ class Controlled:
             raise ValueError(f"out has shapes {[a.shape for a in out]}: expected C-contiguous float64 arrays of shapes "
                              f"{list(want)}, as Controlled.readings({B}, {N}) makes them")
         run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, 0, float(sim.dt), sim.enabled["sonar"],
-                      False, sim.enabled["ranging"], sim.enabled["imu"])
+                      False, sim.enabled["ranging"], sim.enabled["imu"], NO_RANGING_ROWS)
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
         if cmd.shape != (B, N, 2):
             raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")

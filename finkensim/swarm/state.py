@@ -14,7 +14,7 @@ from ..behaviours.wall_check import BehaviourState
 from ..world import WorldState
 
 __all__ = ["KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON", "KIND_CODES", "RECORDABLE",
-           "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "MemoryArrays", "RunSpec", "Recording"]
+           "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "MemoryArrays", "RunSpec", "NO_RANGING_ROWS", "Recording"]
 
 KIND_HOVER = 0
 KIND_RANDOM_WALK = 1
@@ -159,9 +159,15 @@ class MemoryArrays(NamedTuple):
     wall_readings: np.ndarray
 
 
+#: RunSpec.ranging_rows of a kernel that takes no rows from it
+NO_RANGING_ROWS = np.empty((0, 0, 0))
+
+
 class RunSpec(NamedTuple):
     """What a compiled rollout runs: seed, env_ids (B,) int64 global environment indices, step0 (the
-    state's step), n_steps, kind (``KIND_*``), dt s, and which sensors run (sonar, down, ranging, imu)."""
+    state's step), n_steps, kind (``KIND_*``), dt s, which sensors run (sonar, down, ranging, imu), and
+    ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
+    reads is written in it first; (0, 0, 0) where the kernel takes no rows from it)."""
 
     seed: int
     env_ids: np.ndarray
@@ -173,6 +179,7 @@ class RunSpec(NamedTuple):
     do_down: bool
     do_ranging: bool
     do_imu: bool
+    ranging_rows: np.ndarray
 
 
 class Recording(NamedTuple):
