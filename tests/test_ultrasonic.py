@@ -587,12 +587,12 @@ def _crosstalk_plain(n, k, sonar_buf, slot, sp):
 
 
 @njit(cache=True)
-def _crosstalk_both(sonar_buf, slot, sp):
+def _crosstalk_both(sonar_buf, slot, sp, spread=np.inf):
     N = sonar_buf.shape[0]
     out = np.empty((N, 4, 2))
     for n in range(N):
         for k in range(4):
-            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp, np.empty(0, dtype=np.int64), -1)
+            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp, np.empty(0, dtype=np.int64), -1, spread)
             out[n, k, 1] = _crosstalk_plain(n, k, sonar_buf, slot, sp)
     return out
 
@@ -641,6 +641,57 @@ def test_crosstalk_squared_pretests_bit_identical(scene):
     np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
 
 
+@st.composite
+def copter_crosstalk_scenes(draw):
+    """Copters as the engine places their sonars (:func:`sonar_poses_env`: origin + offset · heading, so any two
+    sonars of a copter lie within sonar_spread = 2·|offset|): centres on a coarse grid or anywhere (some far from the
+    origin), headings at multiples of 45°, random, or turning a sonar exactly (± ulps) onto the cone edge toward
+    another copter's sonar 0 — the cases where the copter-level rejection decides near its margin."""
+    from finkensim.sensors.sonar_kernels import sonar_poses_env
+
+    N = draw(st.integers(2, 7))
+    half = draw(st.sampled_from([45.0, 30.0, 90.0, 10.0, 89.999, 0.5, 0.57]))
+    max_range = draw(st.sampled_from([3.0, 0.5, 1.0]))
+    offset = draw(st.sampled_from([0.0, 0.05, 0.1, 0.12]))
+    _, _, sp = setup(n=N, cone_half_angle_deg=half, max_range=max_range, min_range=min(0.03, max_range), offset=offset)
+    far = draw(st.sampled_from([0.0, 0.0, 100.0, 1e4]))
+    pos = np.empty((N, 2))
+    for n in range(N):
+        if draw(st.booleans()):
+            pos[n] = far + 0.25 * draw(st.integers(0, 12)), far + 0.25 * draw(st.integers(0, 16))
+        else:
+            pos[n] = far + draw(st.floats(0.0, 3.0)), far + draw(st.floats(0.0, 4.0))
+    yaw = np.empty(N)
+    for n in range(N):
+        how = draw(st.sampled_from(["grid", "random", "edge"]))
+        if how == "grid":
+            yaw[n] = math.radians(45.0 * draw(st.integers(-4, 3)))
+        elif how == "random":
+            yaw[n] = draw(st.floats(-math.pi, math.pi))
+        else:
+            m, j = draw(st.integers(0, N - 1)), draw(st.integers(0, 3))
+            w = pos[m] - pos[n]
+            yaw[n] = math.atan2(w[1], w[0]) - sp.mount_yaw[j] + draw(st.sampled_from([1.0, -1.0])) * sp.half_angle \
+                + draw(st.sampled_from([0.0, 1e-16, -1e-16, 1e-12, -1e-12, 1e-8, -1e-8]))
+    buf = np.empty((N, 4, 4))
+    sonar_poses_env(pos, yaw, sp, buf)
+    slot = np.array(draw(st.lists(st.integers(0, draw(st.integers(0, 1))), min_size=N, max_size=N)), dtype=np.int64)
+    return buf, slot, sp
+
+
+@settings(derandomize=True, deadline=None, max_examples=400,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scene=copter_crosstalk_scenes())
+def test_crosstalk_copter_level_rejection_bit_identical(scene):
+    """With sonar_spread, copters whose sonars all lie outside the receiver's cone are passed over with one test:
+    every path is the plain loop's, bit for bit."""
+    from finkensim.sensors.sonar_kernels import sonar_spread
+
+    buf, slot, sp = scene
+    out = _crosstalk_both(buf, slot, sp, sonar_spread(sp))
+    np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
+
+
 def test_crosstalk_pretests_bulk_random():
     rng = np.random.default_rng(11)
     _, _, sp = setup(n=10)
@@ -656,6 +707,24 @@ def test_crosstalk_pretests_bulk_random():
         np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
         hits += int(np.isfinite(out[..., 0]).sum())
     assert hits > 1000  # many emitters actually heard
+
+
+def test_crosstalk_copter_level_rejection_bulk_random():
+    """Sonar buffers as the engine builds them, 10 copters anywhere in the arena, offsets 0–0.12 m: the copter-level
+    rejection changes no path (and many are heard)."""
+    from finkensim.sensors.sonar_kernels import sonar_poses_env, sonar_spread
+
+    rng = np.random.default_rng(12)
+    hits = 0
+    for i in range(300):
+        _, _, sp = setup(n=10, offset=float(rng.choice([0.0, 0.05, 0.12])))
+        pos = np.column_stack([rng.uniform(0, 3, 10), rng.uniform(0, 4, 10)])
+        buf = np.empty((10, 4, 4))
+        sonar_poses_env(pos, rng.uniform(-np.pi, np.pi, 10), sp, buf)
+        out = _crosstalk_both(buf, rng.integers(0, 2, 10), sp, sonar_spread(sp))
+        np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
+        hits += int(np.isfinite(out[..., 0]).sum())
+    assert hits > 300  # emitters actually heard
 
 
 def test_sonar_scalars_are_the_models_scalar_fields():

@@ -29,7 +29,7 @@ from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
-                                     sonar_poses_env, store_ideal)
+                                     sonar_poses_env, sonar_spread, store_ideal)
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
 from .pose_noise import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
@@ -181,6 +181,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
     rays = sp.ray_angles
     sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
     geometric = sps.crosstalk & CROSSTALK_GEOMETRIC  # only geometric cross-talk reads the paths
+    spread = sonar_spread(sps)
     S = mount_yaw.shape[0]
     P = w.plate_a.shape[0]
     pos_m = np.empty((N, 2))
@@ -218,7 +219,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
                 store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1) if geometric else np.inf
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1, spread) if geometric else np.inf
 
 
 def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk, z=None):

@@ -34,7 +34,7 @@ from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, E
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 
 __all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
-           "fire_slots_env", "crosstalk_path", "echo_error", "echo_reading", "clamp_reading", "measured_reading",
+           "fire_slots_env", "sonar_spread", "crosstalk_path", "echo_error", "echo_reading", "clamp_reading", "measured_reading",
            "ultrasonic_env", "down_env"]
 
 #: Uniform index (inside sonar k's block 8k … 8k + 7 of a STREAM_SONAR cell) of the coin that decides
@@ -226,12 +226,22 @@ def fire_slots_env(seed, env_id, step, sp, slot, draw):
 
 
 @njit(cache=True, inline="always")
-def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand):
+def sonar_spread(sp):
+    """An upper bound (m) on the distance between two sonars of one copter as :func:`sonar_poses_env` places them
+    (origin + offset · unit heading): 2·|offset|; :func:`crosstalk_path`'s margin absorbs the rounding."""
+    return 2.0 * abs(sp.offset)
+
+
+@njit(cache=True, inline="always")
+def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread):
     """Shortest emitter→receiver path (m) heard by sonar (n, k) under geometric cross-talk; inf if none.
 
     Emitters are the sonars of other copters firing in copter n's slot (``slot`` (N,)), inside the
     receiver's cone and pointing at it, within 2·max_range. sonar_buf (N, S, 4) from :func:`sonar_poses_env`.
     The copters considered: all when ``n_cand`` < 0, else cand[:n_cand] (the result is a minimum: any order).
+    spread m: an upper bound on the distance between any two sonars of one copter in sonar_buf
+    (:func:`sonar_spread` for the buffers of :func:`sonar_poses_env`), or inf (nothing assumed): with it, a copter
+    whose sonars all lie outside the receiver's cone is passed over with one test instead of one per sonar.
     """
     rx = sonar_buf[n, k, 0]
     ry = sonar_buf[n, k, 1]
@@ -257,11 +267,30 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand):
     best2 = np.inf
     ch2 = ch * ch * (1.0 - 1e-12)
     square_cone = ch > 1e-50
+    # Copter-level rejection: the cone (half angle α, cos α = ch) lies inside both half-planes e·w ≥ 0 bounded by its
+    # edges (inward unit normals e1, e2). The sonars of copter m lie within ``spread`` of its sonar 0 (v from the
+    # receiver), so e·v < −(spread + ε) for one edge puts every one of them more than ε outside the cone; there the
+    # test below computes u·w − ch·L < −ε·sin α, far beyond its rounding (~1e-15·L) for ε = 1e-7·(1 + |r| + |v|) m
+    # and sin α ≥ 0.01 (narrower cones skip this). NaN never passes over a copter; an infinite v only copters the
+    # test below rejects too (L = inf is never < best).
+    sa = np.sqrt(max(0.0, 1.0 - ch * ch))
+    e1x = ux * sa - uy * ch
+    e1y = ux * ch + uy * sa
+    e2x = ux * sa + uy * ch
+    e2y = uy * sa - ux * ch
+    by_copter = spread < np.inf and sa >= 0.01
+    pad = spread + 1e-7 * (1.0 + abs(rx) + abs(ry))
     M = sonar_buf.shape[0] if n_cand < 0 else n_cand
     for c in range(M):
         m = c if n_cand < 0 else cand[c]
         if m == n or slot[m] != slot[n]:
             continue
+        if by_copter:
+            vx = sonar_buf[m, 0, 0] - rx
+            vy = sonar_buf[m, 0, 1] - ry
+            lim_v = -(pad + 1e-7 * (abs(vx) + abs(vy)))
+            if (e1x * vx + e1y * vy < lim_v) | (e2x * vx + e2y * vy < lim_v):
+                continue
         for j in range(sonar_buf.shape[1]):
             wx = sonar_buf[m, j, 0] - rx
             wy = sonar_buf[m, j, 1] - ry
@@ -370,6 +399,7 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
         fire_slots_env(seed, env_id, step, sps, slot, 0)
     cell_start, order, spos, cell_of, found, found_d2 = grid
     reach = 2.0 * (sps.max_range + abs(sps.offset)) * (1.0 + 1e-6)
+    spread = sonar_spread(sps)
     for n in range(pos_b.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
         n_cand = -1
@@ -385,7 +415,7 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
                     kept += 1
             n_cand = kept
         for k in range(n_sonars):
-            path = crosstalk_path(n, k, sonar_buf, slot, sps, found, n_cand) if geometric else np.inf
+            path = crosstalk_path(n, k, sonar_buf, slot, sps, found, n_cand, spread) if geometric else np.inf
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
 
 
