@@ -597,6 +597,11 @@ def _crosstalk_both(sonar_buf, slot, sp, spread=np.inf):
     return out
 
 
+# the cross-talk scene tests: many fixed examples (the edge cases are drawn, not listed)
+crosstalk_scene_settings = settings(derandomize=True, deadline=None, max_examples=400,
+                                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
 @st.composite
 def crosstalk_scenes(draw):
     """Sonars on a coarse grid (exact alignments, equal lengths, coincident sonars, lengths exactly 2·max_range)
@@ -632,8 +637,7 @@ def crosstalk_scenes(draw):
     return buf, slot, sp
 
 
-@settings(derandomize=True, deadline=None, max_examples=400,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@crosstalk_scene_settings
 @given(scene=crosstalk_scenes())
 def test_crosstalk_squared_pretests_bit_identical(scene):
     buf, slot, sp = scene
@@ -679,8 +683,7 @@ def copter_crosstalk_scenes(draw):
     return buf, slot, sp
 
 
-@settings(derandomize=True, deadline=None, max_examples=400,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@crosstalk_scene_settings
 @given(scene=copter_crosstalk_scenes())
 def test_crosstalk_copter_level_rejection_bit_identical(scene):
     """With sonar_spread, copters whose sonars all lie outside the receiver's cone are passed over with one test:
