@@ -35,3 +35,46 @@ def test_profile_nests_and_subtracts_children():
     prof = ct.profile(max_depth=1, min_seconds=0.2)
     assert [(r["name"], r["depth"]) for r in prof] == [("outer", 0), ("a", 1), ("b", 1)]
     assert prof[0]["own_seconds"] == 5.0 and prof[2]["own_seconds"] == 1.0
+
+
+def test_the_garbage_collector_is_held_back_during_a_compile_and_restored_after():
+    """finkensim.kernels installs (once) a compile listener: during the outermost compilation, callees included, the
+    objects that existed are frozen and the thresholds raised; afterwards both are as before, also after a compile
+    that fails."""
+    import gc
+
+    import pytest
+    from numba.core import event
+
+    from finkensim.kernels import compile_gc
+
+    assert compile_gc.install() is compile_gc.install()  # registered once
+    seen = []
+
+    class Spy(event.Listener):
+        def on_start(self, ev):
+            seen.append((gc.get_threshold(), gc.get_freeze_count()))
+
+        def on_end(self, ev):
+            pass
+
+    @njit
+    def inner(x):
+        return x * 2
+
+    @njit
+    def outer(x):
+        return inner(x) + 1
+
+    @njit
+    def broken(x):
+        return x.no_such_attribute
+
+    before = gc.get_threshold()
+    with event.install_listener("numba:compile", Spy()):
+        assert outer(3) == 7
+        with pytest.raises(Exception):
+            broken(1)
+    assert len(seen) >= 3  # outer, inner nested in it, broken
+    assert all(t == compile_gc.COMPILE_THRESHOLDS and frozen > 0 for t, frozen in seen)
+    assert gc.get_threshold() == before and gc.get_freeze_count() == 0
