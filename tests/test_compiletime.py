@@ -78,3 +78,15 @@ def test_the_garbage_collector_is_held_back_during_a_compile_and_restored_after(
     assert len(seen) >= 3  # outer, inner nested in it, broken
     assert all(t == compile_gc.COMPILE_THRESHOLDS and frozen > 0 for t, frozen in seen)
     assert gc.get_threshold() == before and gc.get_freeze_count() == 0
+
+    @njit
+    def again(x):
+        return x - 1
+
+    gc.freeze()  # a process's own freeze survives a compile
+    try:
+        frozen = gc.get_freeze_count()
+        assert again(2) == 1
+        assert gc.get_freeze_count() == frozen > 0
+    finally:
+        gc.unfreeze()

@@ -35,7 +35,10 @@ class GcPause(event.Listener):
         depth = getattr(self._local, "depth", 0)
         if depth == 0:
             self._local.thresholds = gc.get_threshold()
-            gc.freeze()
+            # a process that froze objects itself (a forking server) keeps its own freeze: unfreeze would undo it
+            self._local.froze = gc.get_freeze_count() == 0
+            if self._local.froze:
+                gc.freeze()
             gc.set_threshold(*COMPILE_THRESHOLDS)
         self._local.depth = depth + 1
 
@@ -44,7 +47,8 @@ class GcPause(event.Listener):
         self._local.depth = max(depth, 0)
         if depth == 0:
             gc.set_threshold(*self._local.thresholds)
-            gc.unfreeze()
+            if self._local.froze:
+                gc.unfreeze()
 
 
 _installed: GcPause | None = None
