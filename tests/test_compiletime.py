@@ -87,6 +87,6 @@ def test_the_garbage_collector_is_held_back_during_a_compile_and_restored_after(
     try:
         frozen = gc.get_freeze_count()
         assert again(2) == 1
-        assert gc.get_freeze_count() == frozen > 0
+        assert gc.get_freeze_count() > frozen // 2 > 0  # not unfrozen (frozen objects freed meanwhile leave it)
     finally:
         gc.unfreeze()
