@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from .budget import check_memory, flight_advice, flight_arrays, format_bytes
-from .config import ConfigError, strip_bom
+from .config import ConfigError
+from .usertext import strip_bom
 from .flightlog import FlightLog, FlightLogError, from_csv, load
 
 __all__ = ["SWEEP_KEYS", "file_kind", "check_file", "check_files", "log_summary"]

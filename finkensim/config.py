@@ -12,12 +12,14 @@ original V-REP report (see ``DESIGN.md``); keys given explicitly still override 
 from __future__ import annotations
 
 import dataclasses
-import difflib
+import functools
 import math
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
+
+from .usertext import strip_bom, suggest
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -84,9 +86,7 @@ def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
         if not isinstance(value, str):
             raise ConfigError(f"{key} = {value!r}: expected a string, got {type(value).__name__}")
         if meta["choices"] is not None and value not in meta["choices"]:
-            hint = difflib.get_close_matches(value, meta["choices"], n=1)
-            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
-            raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{extra}")
+            raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{suggest(value, meta['choices'])}")
         return value
     if t == "tuple[str, ...]":
         if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
@@ -338,9 +338,8 @@ class Config:
 
     def __init__(self, profile: str = "default", **sections):
         if profile not in PROFILES:
-            hint = difflib.get_close_matches(str(profile), PROFILES, n=1)
-            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
-            raise ConfigError(f"profile = {profile!r}: expected one of {', '.join(map(repr, PROFILES))}{extra}")
+            raise ConfigError(f"profile = {profile!r}: expected one of {', '.join(map(repr, PROFILES))}"
+                              f"{suggest(profile, PROFILES)}")
         object.__setattr__(self, "profile", profile)
         built = {}
         for name, cls in SECTIONS.items():
@@ -365,6 +364,10 @@ class Config:
 
     def __hash__(self):
         return hash((self.profile, tuple(self._sections.items())))
+
+    def __reduce__(self):
+        # Frozen slots block pickle's default path; rebuild through __init__, which re-checks the values.
+        return functools.partial(Config, self.profile, **self._sections), ()
 
     def __repr__(self):
         inner = ", ".join(f"{k}={v!r}" for k, v in self._sections.items())
@@ -424,14 +427,12 @@ def check_key(section: str, key: str | None = None) -> None:
         ConfigError: for an unknown section or key, with a close-match suggestion and the allowed names.
     """
     if section not in SECTIONS:
-        hint = difflib.get_close_matches(section, list(SECTIONS) + ["profile"], n=1)
-        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        extra = suggest(section, [*SECTIONS, "profile"])
         raise ConfigError(f"unknown section [{section}]: expected one of {', '.join(SECTIONS)}{extra}")
     if key is not None:
         names = [f.name for f in dataclasses.fields(SECTIONS[section])]
         if key not in names:
-            hint = difflib.get_close_matches(key, names, n=1)
-            extra = f" (did you mean {section}.{hint[0]}?)" if hint else ""
+            extra = suggest(key, names, show=lambda name: f"{section}.{name}")
             raise ConfigError(f"unknown key {section}.{key}{extra}; allowed: {', '.join(names)}")
 
 
@@ -482,11 +483,6 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
         where = f" in {path}" if path else ""
         raise ConfigError(f"invalid TOML{where}: {exc}") from None
     return config_from_dict(data)
-
-
-def strip_bom(text: str) -> str:
-    """``text`` without a leading UTF-8 byte-order mark (some editors write one; TOML does not allow it)."""
-    return text[1:] if text.startswith("\ufeff") else text
 
 
 def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:

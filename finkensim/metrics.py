@@ -55,6 +55,7 @@ from typing import Iterable, NamedTuple, Sequence
 import numpy as np
 from numba import njit
 
+from .usertext import suggest
 from .copters import WALL_RELEASE_GAP
 
 __all__ = [
@@ -88,16 +89,12 @@ METRICS: dict[str, MetricInfo] = {
 
 def check_metric_names(names: Iterable[str] | None) -> tuple[str, ...]:
     """The metric names in canonical order; unknown names raise ``ValueError`` with a suggestion."""
-    import difflib
-
     if names is None:
         return tuple(METRICS)
     names = list(names)
     for n in names:
         if n not in METRICS:
-            hint = difflib.get_close_matches(str(n), METRICS, n=1)
-            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
-            raise ValueError(f"unknown metric {n!r}{extra}; expected some of {', '.join(METRICS)}")
+            raise ValueError(f"unknown metric {n!r}{suggest(n, METRICS)}; expected some of {', '.join(METRICS)}")
     return tuple(m for m in METRICS if m in names)
 
 

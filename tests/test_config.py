@@ -1,9 +1,11 @@
 """Configuration: defaults, TOML round trip, every kind of error, the seed profile, Config.replace."""
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
+import pickle
 
 import pytest
 
@@ -228,6 +230,13 @@ def test_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.walls.n_segments = 3
     assert hash(cfg) == hash(Config())
+
+
+@pytest.mark.parametrize("cfg", CONFIGS, ids=["default", "seed", "custom"])
+def test_pickle_and_copy_round_trip(cfg):
+    # process pools and Dask ship configs by pickle; a frozen config must survive it unchanged
+    for clone in (pickle.loads(pickle.dumps(cfg)), copy.deepcopy(cfg), copy.copy(cfg)):
+        assert clone == cfg and clone.profile == cfg.profile and clone.to_dict() == cfg.to_dict()
 
 
 def test_describe_rows():

@@ -17,12 +17,12 @@ to each agent). Register your own with :func:`register_task`:
 """
 from __future__ import annotations
 
-import difflib
 from typing import Callable, NamedTuple
 
 import numpy as np
 
 from ..config import ConfigError
+from ..usertext import suggest
 from ..metrics import COVERAGE_CELL, WALL_DISTANCE, cohesion, coverage_cells, wall_sticking
 
 __all__ = ["TaskContext", "Cohesion", "Coverage", "WallAvoidance", "TASKS", "register_task", "make_task"]
@@ -110,9 +110,7 @@ def make_task(task, task_kwargs: dict | None = None):
     """A task object from a registered name (with ``task_kwargs``) or an object with ``reset`` and ``reward``."""
     if isinstance(task, str):
         if task not in TASKS:
-            hint = difflib.get_close_matches(task, TASKS, n=1)
-            extra = f" (did you mean {hint[0]!r}?)" if hint else ""
-            raise ConfigError(f"task = {task!r}{extra}: expected one of {', '.join(map(repr, TASKS))} or an object "
+            raise ConfigError(f"task = {task!r}{suggest(task, TASKS)}: expected one of {', '.join(map(repr, TASKS))} or an object "
                               "with reset(ctx, pos) and reward(ctx, world)")
         try:
             return TASKS[task](**(task_kwargs or {}))

@@ -19,13 +19,13 @@ Channels (column ``channel`` of :attr:`Recording.readings`):
 """
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..usertext import suggest
 from ..flightlog import FlightLogError
 from ..flightlog.messages import fmt
 
@@ -91,8 +91,7 @@ def parse_channel(name: str) -> Channel:
         return Channel("ranging", other=name[len("ranging/"):])
     if name in IMU_CHANNELS:
         return Channel("imu", axis=IMU_CHANNELS.index(name))
-    close = difflib.get_close_matches(name, ["ultrasonic/0", "ranging/", *IMU_CHANNELS], n=1, cutoff=0.6)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    hint = suggest(name, ["ultrasonic/0", "ranging/", *IMU_CHANNELS])
     raise RecordingError(f"readings: unknown channel {name!r}{hint}; expected one of {', '.join(_CHANNEL_FORMS)}")
 
 
@@ -234,8 +233,7 @@ def check_recording(rec: Recording) -> CheckedRecording:
     parsed = {nm: parse_channel(nm) for nm in names}
     for nm, c in parsed.items():
         if c.kind == "ranging" and c.other not in index:
-            close = difflib.get_close_matches(c.other, copters, n=1)
-            hint = f" (did you mean 'ranging/{close[0]}'?)" if close else ""
+            hint = suggest(c.other, copters, show=lambda name: f"'ranging/{name}'")
             raise RecordingError(f"readings: channel {nm!r} ranges to {c.other!r}, which has no tracking{hint}; "
                                  f"tracked copters: {', '.join(copters)}")
     kind_of = {nm: KIND_NAMES.index(c.kind) for nm, c in parsed.items()}

@@ -31,12 +31,12 @@ entry and key.
 """
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..usertext import suggest
 from .recording import RecordingError
 
 __all__ = ["TopicEntry", "TopicsSpec", "parse_topics", "ROLES"]
@@ -85,11 +85,6 @@ class TopicsSpec:
         return {e.topic: e for e in self.entries}
 
 
-def _suggest(word, options):
-    close = difflib.get_close_matches(word, list(options), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
 def parse_topics(source) -> TopicsSpec:
     """A :class:`TopicsSpec` from a topics TOML path, TOML text, a parsed dict, or a TopicsSpec (module doc)."""
     if isinstance(source, TopicsSpec):
@@ -113,7 +108,7 @@ def parse_topics(source) -> TopicsSpec:
     default_time = data.get("time", "header")
     unknown = [k for k in data if k not in ROLES and k != "time"]
     if unknown:
-        raise RecordingError(f"{name}: unknown key {unknown[0]!r}{_suggest(unknown[0], ROLES + ('time',))}; expected "
+        raise RecordingError(f"{name}: unknown key {unknown[0]!r}{suggest(unknown[0], ROLES + ('time',))}; expected "
                              f"[[tracking]], [[ultrasonic]], [[ranging]], [[imu]] and optionally time")
     entries, seen_topics, seen_channels = [], {}, {}
     for role in ROLES:
@@ -128,7 +123,7 @@ def parse_topics(source) -> TopicsSpec:
                 raise RecordingError(f"{where} = {item!r}: expected a table")
             for k in item:
                 if k not in _KEYS[role]:
-                    raise RecordingError(f"{where}: unknown key {k!r}{_suggest(k, _KEYS[role])}; allowed: "
+                    raise RecordingError(f"{where}: unknown key {k!r}{suggest(k, _KEYS[role])}; allowed: "
                                          f"{', '.join(sorted(_KEYS[role]))}")
             for k in _REQUIRED[role]:
                 if k not in item:

@@ -3,9 +3,8 @@ with suggestions, and the keys a sweep may not set."""
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any, Callable, Mapping
 
 from ..config import SECTIONS, Config, ConfigError, check_key
 
@@ -17,12 +16,6 @@ RESERVED_KEYS = {
 
 class SweepError(ConfigError):
     """A sweep file, design, executor or output directory is wrong; raised before any run starts."""
-
-
-def suggest(word: str, options: Iterable[str]) -> str:
-    """`` (did you mean 'x'?)`` for the closest of ``options`` to ``word``, or "" when none is close."""
-    hint = difflib.get_close_matches(str(word), list(options), n=1)
-    return f" (did you mean {hint[0]!r}?)" if hint else ""
 
 
 def is_number(v) -> bool:

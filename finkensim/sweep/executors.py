@@ -12,7 +12,8 @@ import time
 from typing import Any, Iterator, Mapping
 
 from ..episode import run_episode
-from .checks import SweepError, suggest
+from ..usertext import suggest
+from .checks import SweepError
 
 EXECUTORS = ("serial", "process", "dask")
 

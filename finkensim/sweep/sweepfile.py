@@ -58,10 +58,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..config import SECTIONS, Config, ConfigError, check_key, strip_bom
+from ..config import SECTIONS, Config, ConfigError, check_key
+from ..usertext import strip_bom, suggest
 from ..metrics import METRICS
 from ..scenario import load_scenario
-from .checks import Parser, SweepError, field_kind, is_duration, is_number, suggest
+from .checks import Parser, SweepError, field_kind, is_duration, is_number
 from .keys import DEFAULT_REPLICATES, SEED_TAG_DESIGN
 
 if sys.version_info >= (3, 11):
