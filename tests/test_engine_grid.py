@@ -6,6 +6,9 @@ the definition (two copters touch when their centres are closer than 2·radius).
 """
 from __future__ import annotations
 
+import copy
+import pickle
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -185,6 +188,23 @@ def test_without_recorded_ranging_the_grid_leaves_out_of_range_columns_and_nothi
     for name in names:
         np.testing.assert_array_equal(getattr(r_g, name), getattr(r_b, name))
     np.testing.assert_array_equal(s_g.world.pos, s_b.world.pos)
+
+
+def test_a_pickled_or_copied_sim_flies_the_same_and_leaves_the_kept_rows_behind():
+    """Process pools and Dask ship a sim by pickle: the copy (pickled or deep-copied) starts without the
+    original's kept ranging rows and flies the original's flight bit for bit."""
+    cfg = Config().replace({**CROWDED, "behaviour.kind": "attraction_repulsion", "behaviour.wall_check": "sequence",
+                            "simulation.grid_min_copters": 0})
+    sim = SwarmSim(cfg)
+    _, r_0 = sim.rollout(sim.init(n_envs=2, seed=3), 30, record=["pose", "sonar"])
+    kept = sim._ranging_rows(2, 40, 40)
+    for copy_of in (lambda s: pickle.loads(pickle.dumps(s)), copy.deepcopy):
+        clone = copy_of(sim)
+        assert clone.cfg == cfg and getattr(clone._work, "ranging_rows", None) is None
+        _, r = clone.rollout(clone.init(n_envs=2, seed=3), 30, record=["pose", "sonar"])
+        np.testing.assert_array_equal(r.pose, r_0.pose)
+        np.testing.assert_array_equal(r.sonar, r_0.sonar)
+        assert clone._ranging_rows(2, 40, 40) is not kept
 
 
 def test_world_step_and_vector_env_step_use_the_grid_identically():

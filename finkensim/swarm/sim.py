@@ -97,6 +97,14 @@ class SwarmSim:
                     raise ConfigError(f"behaviour.wall_check = {c.behaviour.wall_check!r} needs {key} = true")
         self._work = threading.local()  # per thread: the compiled rollout's ranging rows, kept between calls
 
+    def __getstate__(self):
+        # the kept ranging rows are a per-thread cache: a copy (pickle, deepcopy) starts without them
+        return {k: v for k, v in self.__dict__.items() if k != "_work"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._work = threading.local()
+
     @property
     def n_copters(self) -> int:
         return self.cfg.copters.n
