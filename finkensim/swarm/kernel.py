@@ -135,8 +135,8 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
     # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which reads
     # zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry read is
     # written first at each step (all of them, or those in range: see `fill` below), so the rows need no zeroing,
-    # and they are the caller's buffer, kept between rollouts (fresh pages cost the kernel's zeroing of all of
-    # them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
+    # and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's zeroing of all
+    # of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
     if run.do_ranging:
         rng = run.ranging_rows[b]
     else:
