@@ -78,6 +78,17 @@ def test_engine_scaling_measures_small_swarms_and_draws_the_figure(tmp_path):
     g = [r["grid_us"] for r in rows]
     assert res["spread"] == max(g) / np.sqrt(max(g) * min(g)) - 1.0
     assert "| 64 |" in res["markdown"] and (tmp_path / "engine_scaling.png").stat().st_size > 10_000
+    assert all(r["local_us"] > 0 for r in rows) and res["local_spread"] >= 0
+    # the copters in range, against a plain count on the same settled swarm
+    sim, state = engine_scaling.settled(64, True)
+    pos = np.asarray(state.world.pos[0])
+    d = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
+    same_slot = (np.arange(64)[:, None] % 4) == (np.arange(64)[None, :] % 4)  # round robin over 4 slots
+    off_diagonal = ~np.eye(64, dtype=bool)
+    expect = ((d <= 6.0) & same_slot & off_diagonal).sum(1).mean(), ((d <= 2.5) & off_diagonal).sum(1).mean()
+    assert (sim.cfg.sonar.schedule, sim.cfg.sonar.n_slots, sim.cfg.sonar.max_range) == ("round_robin", 4, 3.0)
+    assert engine_scaling.copters_in_range(sim, state) == pytest.approx(expect, rel=1e-12)
+    assert rows[1]["crosstalk_peers"] == pytest.approx(expect[0]) and rows[1]["ranging_peers"] == pytest.approx(expect[1])
     (tmp_path / "bench.json").write_text(json.dumps({"engine_scaling": res}))
     engine_scaling.main(["--plot", str(tmp_path / "bench.json"), str(tmp_path / "again.png")])
     assert (tmp_path / "again.png").stat().st_size > 10_000
