@@ -13,7 +13,7 @@ from finkensim.config import load_config
 from finkensim.flightlog import FlightLog
 from finkensim.gap import validate_sweep
 from finkensim.gap.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
-from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, wilson
+from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
@@ -46,6 +46,20 @@ def test_pairs_combine_two_effects_and_refuse_clashing_settings():
         pair_case("crosstalk_geometric", "crosstalk_constant").make(np.random.default_rng(0))
     with pytest.raises(KeyError):
         get_case("nonsense+latency")
+
+
+def test_pair_grid_counts_each_pair_in_its_cell_and_the_pairs_that_reach_the_target(tmp_path):
+    rows = ([{"case": "sonar_bias+latency", "correct": c} for c in [True] * 9 + [False]]
+            + [{"case": "wall_bulge+latency", "correct": True}] * 4 + [{"case": "null", "correct": True}] * 3)
+    grid = pair_grid(rows)
+    lines = grid.splitlines()
+    assert lines[0] == "| both named | sonar_bias | latency |"  # the effects of the pairs, in catalogue order
+    assert lines[2] == "| wall_bulge | — | 4/4 |" and lines[3] == "| sonar_bias |  | 9/10 |"
+    lo, hi = wilson(9, 10)
+    assert (f"≥ 90% of their trials: 2 of 2; lowest sonar_bias+latency 9/10 (Wilson 95 % {lo:.0%}–{hi:.0%}); "
+            "trials per pair 4–10.") in grid
+    assert pair_grid([{"case": "null", "correct": True}]) == ""
+    assert "1 of 2" in pair_grid(rows + [{"case": "wall_bulge+latency", "correct": False}])  # 4/5 < 90 %
 
 
 def test_case_lists_expand_pairs_once_and_in_order():

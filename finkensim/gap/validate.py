@@ -449,3 +449,33 @@ def confusion(rows: list[dict]):
     for case, r in mat.iterrows():
         lines.append(f"| {case} | " + " | ".join(str(int(x)) if x == x else "0" for x in r.values) + " |")
     return df, "\n".join(lines) + "\n"
+
+
+def pair_grid(rows: list[dict], target: float = 0.9) -> str:
+    """The pair trials of ``rows`` as an effect × effect grid (Markdown): each cell k/n, the trials of pair a+b in
+    which both effects were named; "—" where the two cannot be simulated together (or no trial ran). A last line
+    counts the pairs whose share reaches ``target`` (the issue's "every pair both named in ≥ 90 %")."""
+    tally: dict[str, list[int]] = {}
+    for r in rows:
+        if "+" in r["case"]:
+            t = tally.setdefault(r["case"], [0, 0])
+            t[0] += bool(r["correct"])
+            t[1] += 1
+    if not tally:
+        return ""
+    effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
+    lines = ["| both named | " + " | ".join(effects[1:]) + " |", "| --- |" + " ---: |" * (len(effects) - 1)]
+    for i, a in enumerate(effects[:-1]):
+        cells = []
+        for j, b in enumerate(effects[1:], start=1):
+            k, n = tally.get(f"{a}+{b}") or tally.get(f"{b}+{a}") or (0, 0)
+            cells.append("" if j <= i else (f"{k}/{n}" if n else "—"))
+        lines.append(f"| {a} | " + " | ".join(cells) + " |")
+    shares = {p: k / n for p, (k, n) in tally.items()}
+    met = sum(x >= target for x in shares.values())
+    worst = min(shares, key=shares.get)
+    lo, hi = wilson(*tally[worst])
+    lines += ["", f"Pairs with both effects named in ≥ {target:.0%} of their trials: {met} of {len(tally)}; lowest "
+              f"{worst} {tally[worst][0]}/{tally[worst][1]} (Wilson 95 % {lo:.0%}–{hi:.0%}); trials per pair "
+              f"{min(n for _, n in tally.values())}–{max(n for _, n in tally.values())}."]
+    return "\n".join(lines) + "\n"

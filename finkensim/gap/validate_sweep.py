@@ -127,13 +127,15 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
 
 
 def summarize(out: Path) -> str:
-    """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not."""
-    from .validate import confusion
+    """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not; with pair trials also
+    their effect × effect grid (:func:`~finkensim.gap.validate.pair_grid`)."""
+    from .validate import confusion, pair_grid
 
     rows = list(load_done(Path(out) / "trials.jsonl").values())
     if not rows:
         raise FileNotFoundError(f"{Path(out) / 'trials.jsonl'}: no finished trials")
-    return confusion(rows)[1]
+    grid = pair_grid(rows)
+    return confusion(rows)[1] + ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid if grid else "")
 
 
 if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT: the matrix of an interrupted run so far
