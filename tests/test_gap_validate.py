@@ -152,3 +152,38 @@ def test_logs_in_another_tools_conventions(case, conventions):
         assert not v["significant_gap"] and not any(loc["significant"] for loc in rep["locations"])
     else:
         assert v["effect"] == "wall_bulge" and v["shrink_heldout"] >= 0.6, v
+
+
+def _generate_with(case, sim_updates, seed=SEED):
+    """:func:`generate` with more simulator settings for the "real" flights (the diagnosed config keeps its own)."""
+    base = CASES[case]
+
+    def make(rng):
+        updates, post, truth = base.make(rng)
+        return {**sim_updates, **updates}, post, truth
+
+    return generate(replace(base, make=make), seed, n_flights=2, duration=30.0)
+
+
+def test_geometry_and_sonar_count_come_from_the_log():
+    """Logs of arenas and sonar rings the diagnosed config does not describe (it keeps 3 m × 4 m and 4 sonars at
+    0/90/180/270°): a 4 m × 5 m arena with three sonars (one column dropped, as a tool with a broken sonar would log)
+    and a sound-speed error → named; a 2 m × 6 m arena with eight sonars every 45° (two flights of the same poses,
+    the second with the sonars turned 45°, merged) and no effect → no gap, nothing flagged."""
+    logs, cfg, _ = _generate_with("sound_speed", {"arena.width": 4.0, "arena.length": 5.0})
+    for log in logs:
+        log.ultrasonic, log.ultrasonic_yaw = log.ultrasonic[..., :3].copy(), log.ultrasonic_yaw[:3].copy()
+    rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg.replace(SMALL)))
+    assert (cfg.arena.width, cfg.arena.length, cfg.sonar.yaw_deg) == (3.0, 4.0, (0.0, 90.0, 180.0, -90.0))
+    assert rep["verdict"]["effect"] == "sound_speed" and rep["verdict"]["shrink_heldout"] >= 0.6, rep["verdict"]
+
+    arena = {"arena.width": 2.0, "arena.length": 6.0}
+    logs, cfg, _ = _generate_with("null", arena)
+    turned, _, _ = _generate_with("null", {**arena, "sonar.yaw_deg": [45.0, 135.0, 225.0, 315.0]})
+    for log, other in zip(logs, turned):
+        np.testing.assert_array_equal(log.pose, other.pose)  # the random walk does not read the sonars
+        log.ultrasonic = np.concatenate([log.ultrasonic, other.ultrasonic], axis=-1)
+        log.ultrasonic_yaw = np.concatenate([log.ultrasonic_yaw, other.ultrasonic_yaw])
+    assert logs[0].ultrasonic.shape[-1] == 8 and tuple(logs[0].arena) == (2.0, 6.0)
+    rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg.replace(SMALL)))
+    assert not rep["verdict"]["significant_gap"] and not any(loc["significant"] for loc in rep["locations"])
