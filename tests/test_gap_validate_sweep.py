@@ -61,6 +61,12 @@ def test_pair_grid_counts_each_pair_in_its_cell_and_the_pairs_that_reach_the_tar
     assert pair_grid([{"case": "null", "correct": True}]) == ""
     assert "1 of 2" in pair_grid(rows + [{"case": "wall_bulge+latency", "correct": False}])  # 4/5 < 90 %
 
+    from finkensim.gap.validate_plot import pair_grid_figure
+
+    assert pair_grid_figure(rows, tmp_path / "pairs.png").stat().st_size > 5_000
+    assert pair_grid_figure([{"case": "null", "correct": True}], tmp_path / "none.png") is None
+    assert not (tmp_path / "none.png").exists()
+
 
 def test_case_lists_expand_pairs_once_and_in_order():
     from finkensim.gap.validate import expand_cases

@@ -451,19 +451,25 @@ def confusion(rows: list[dict]):
     return df, "\n".join(lines) + "\n"
 
 
+def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]:
+    """The pair trials of ``rows``: (the effects they combine, in catalogue order; {"a+b": (trials with both named,
+    trials)})."""
+    tally: dict[str, tuple[int, int]] = {}
+    for r in rows:
+        if "+" in r["case"]:
+            k, n = tally.get(r["case"], (0, 0))
+            tally[r["case"]] = (k + bool(r["correct"]), n + 1)
+    effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
+    return effects, tally
+
+
 def pair_grid(rows: list[dict], target: float = 0.9) -> str:
     """The pair trials of ``rows`` as an effect × effect grid (Markdown): each cell k/n, the trials of pair a+b in
     which both effects were named; "—" where the two cannot be simulated together (or no trial ran). A last line
     counts the pairs whose share reaches ``target`` (the issue's "every pair both named in ≥ 90 %")."""
-    tally: dict[str, list[int]] = {}
-    for r in rows:
-        if "+" in r["case"]:
-            t = tally.setdefault(r["case"], [0, 0])
-            t[0] += bool(r["correct"])
-            t[1] += 1
+    effects, tally = pair_tally(rows)
     if not tally:
         return ""
-    effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
     lines = ["| both named | " + " | ".join(effects[1:]) + " |", "| --- |" + " ---: |" * (len(effects) - 1)]
     for i, a in enumerate(effects[:-1]):
         cells = []

@@ -138,7 +138,15 @@ def summarize(out: Path) -> str:
     return confusion(rows)[1] + ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid if grid else "")
 
 
-if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT: the matrix of an interrupted run so far
-    import sys
+if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT [--figure PNG]: the matrix of a run so far
+    import argparse
 
-    print(summarize(Path(sys.argv[1] if len(sys.argv) > 1 else "out/gap-validate")), end="")
+    ap = argparse.ArgumentParser(description="The matrix of a gap-validate run (finished or not) from OUT/trials.jsonl")
+    ap.add_argument("out", nargs="?", default="out/gap-validate", help="the run's --out directory")
+    ap.add_argument("--figure", metavar="PNG", help="also draw the pair trials as an effect × effect grid")
+    args = ap.parse_args()
+    print(summarize(Path(args.out)), end="")
+    if args.figure:
+        from .validate_plot import pair_grid_figure
+
+        print(pair_grid_figure(list(load_done(Path(args.out) / "trials.jsonl").values()), args.figure))
