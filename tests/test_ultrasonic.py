@@ -590,9 +590,10 @@ def _crosstalk_plain(n, k, sonar_buf, slot, sp):
 def _crosstalk_both(sonar_buf, slot, sp, spread=np.inf):
     N = sonar_buf.shape[0]
     out = np.empty((N, 4, 2))
+    scratch = np.full(N, -1, dtype=np.int64)
     for n in range(N):
         for k in range(4):
-            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp, np.empty(0, dtype=np.int64), -1, spread)
+            out[n, k, 0] = crosstalk_path(n, k, sonar_buf, slot, sp, np.empty(0, dtype=np.int64), -1, spread, scratch)
             out[n, k, 1] = _crosstalk_plain(n, k, sonar_buf, slot, sp)
     return out
 

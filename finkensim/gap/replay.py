@@ -194,6 +194,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
     kind = np.empty((N, S), dtype=np.int64)
     hit = np.empty((N, S, 2))
     all_ = np.empty(0, dtype=np.int64)  # "every copter" for the ray and cross-talk searches
+    scratch = np.empty(N, dtype=np.int64)  # crosstalk_path's
     shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
     for p in range(P):
         b = poses.bulge[k, p]
@@ -219,7 +220,7 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
                 store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1, spread) if geometric else np.inf
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1, spread, scratch) if geometric else np.inf
 
 
 def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk, z=None):

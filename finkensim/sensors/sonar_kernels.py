@@ -233,7 +233,7 @@ def sonar_spread(sp):
 
 
 @njit(cache=True, inline="always")
-def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread):
+def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread, scratch):
     """Shortest emitter→receiver path (m) heard by sonar (n, k) under geometric cross-talk; inf if none.
 
     Emitters are the sonars of other copters firing in copter n's slot (``slot`` (N,)), inside the
@@ -242,6 +242,7 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread):
     spread m: an upper bound on the distance between any two sonars of one copter in sonar_buf
     (:func:`sonar_spread` for the buffers of :func:`sonar_poses_env`), or inf (nothing assumed): with it, a copter
     whose sonars all lie outside the receiver's cone is passed over with one test instead of one per sonar.
+    scratch: int64 work buffer with room for every copter considered.
     """
     rx = sonar_buf[n, k, 0]
     ry = sonar_buf[n, k, 1]
@@ -250,23 +251,6 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread):
     lim = 2.0 * sp.max_range
     ch = sp.cos_half_angle
     best = np.inf
-    # Squared-length pre-tests, each only rejecting emitters the exact test below rejects too, so the
-    # result is that of the plain loop (L = sqrt(wx² + wy²) per emitter, then the four comparisons) bit
-    # for bit, with the sqrt left for emitters that pass: fl∘sqrt is monotonic, so L² > q with
-    # fl(sqrt(q)) > x implies L > x, and q = x²·(1 + 1e-12) is such a bound for x > 0 (the margin is
-    # ~10³ times the rounding of the squares; used for x > 1e-100, so x² does not underflow). With
-    # cos(half angle) > 0 a negative dot product d fails its cone test, and for d ≥ 0, d² < ch²·L²·(1 − 1e-12)
-    # implies d < fl(ch·fl(sqrt(L²))) (used for ch > 1e-50 and 1e-200 < L² < 1e200: no underflow or
-    # overflow; a d² that underflows is < 1e-308 while ch·L > 1e-150).
-    if lim > 1e-100:
-        lim2 = lim * lim * (1.0 + 1e-12)
-    elif lim <= 0.0:
-        lim2 = -1.0  # every L > lim (and L2 = NaN fails every test anyway)
-    else:
-        lim2 = np.inf  # tiny or NaN: no pre-test
-    best2 = np.inf
-    ch2 = ch * ch * (1.0 - 1e-12)
-    square_cone = ch > 1e-50
     # Copter-level rejection: the cone (half angle α, cos α = ch) lies inside both half-planes e·w ≥ 0 bounded by its
     # edges (inward unit normals e1, e2). The sonars of copter m lie within ``spread`` of its sonar 0 (v from the
     # receiver), so e·v < −(spread + ε) for one edge puts every one of them more than ε outside the cone; there the
@@ -280,37 +264,31 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread):
     e2y = uy * sa - ux * ch
     by_copter = spread < np.inf and sa >= 0.01
     pad = spread + 1e-7 * (1.0 + abs(rx) + abs(ry))
+    # first the copters that can be heard (same slot, not n, not passed over), compacted without a branch (always
+    # write, advance on a keep: whether a copter is kept is a coin flip the processor cannot predict), then their
+    # emitters
     M = sonar_buf.shape[0] if n_cand < 0 else n_cand
+    kept = 0
     for c in range(M):
         m = c if n_cand < 0 else cand[c]
-        if m == n or slot[m] != slot[n]:
-            continue
-        if by_copter:
-            vx = sonar_buf[m, 0, 0] - rx
-            vy = sonar_buf[m, 0, 1] - ry
-            lim_v = -(pad + 1e-7 * (abs(vx) + abs(vy)))
-            if (e1x * vx + e1y * vy < lim_v) | (e2x * vx + e2y * vy < lim_v):
-                continue
+        vx = sonar_buf[m, 0, 0] - rx
+        vy = sonar_buf[m, 0, 1] - ry
+        lim_v = -(pad + 1e-7 * (abs(vx) + abs(vy)))
+        outside = by_copter & ((e1x * vx + e1y * vy < lim_v) | (e2x * vx + e2y * vy < lim_v))
+        scratch[kept] = m
+        kept += (m != n) & (slot[m] == slot[n]) & (not outside)
+    for c in range(kept):
+        m = scratch[c]
         for j in range(sonar_buf.shape[1]):
             wx = sonar_buf[m, j, 0] - rx
             wy = sonar_buf[m, j, 1] - ry
-            L2 = wx * wx + wy * wy
-            d_rx = ux * wx + uy * wy
-            d_em = -(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy)
-            # evaluated without short-circuits (bitwise | and &): one well-predicted branch per emitter
-            skip = (L2 > lim2) | (L2 > best2)  # L > lim or L > best
-            if square_cone:
-                c2 = ch2 * L2
-                outside = (d_rx < 0.0) | (d_em < 0.0) | (d_rx * d_rx < c2) | (d_em * d_em < c2)  # d < ch·L
-                skip = skip | ((L2 > 1e-200) & (L2 < 1e200) & outside)
-            if skip:
-                continue
-            L = np.sqrt(L2)
-            if L <= 0.0 or L > lim or L >= best:
-                continue
-            if d_rx >= ch * L and d_em >= ch * L:
-                best = L
-                best2 = L * L * (1.0 + 1e-12) if L > 1e-100 else np.inf
+            L = np.sqrt(wx * wx + wy * wy)
+            cl = ch * L
+            # the plain test (L in (0, lim], shorter than the best, inside both cones) without a branch: whether an
+            # emitter passes is unpredictable, and a select costs less than the mispredictions it saves
+            rejected = (L <= 0.0) | (L > lim) | (L >= best)
+            ok = (not rejected) & (ux * wx + uy * wy >= cl) & (-(sonar_buf[m, j, 2] * wx + sonar_buf[m, j, 3] * wy) >= cl)
+            best = L if ok else best
     return best
 
 
@@ -400,22 +378,27 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
     cell_start, order, spos, cell_of, found, found_d2 = grid
     reach = 2.0 * (sps.max_range + abs(sps.offset)) * (1.0 + 1e-6)
     spread = sonar_spread(sps)
-    for n in range(pos_b.shape[0]):
+    N = pos_b.shape[0]
+    # crosstalk_path's scratch (row 0) and, without the grid, the candidate list (row 1; with it, the query's)
+    xt_buf = np.empty((2, N if geometric else 0), dtype=np.int64)
+    cand = found if g.on else xt_buf[1]
+    for n in range(N):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
-        n_cand = -1
-        if geometric and g.on:  # the grid ideal_env built
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start,
-                               order, spos, found, found_d2)
-            # keep the copters firing in n's slot (the others crosstalk_path skips), once for n's S sonars
-            kept = 0
-            for c in range(n_cand):
-                m = found[c]
-                if slot[m] == slot[n]:
-                    found[kept] = m
-                    kept += 1
-            n_cand = kept
+        n_cand = 0
+        if geometric:
+            n_found = N
+            if g.on:  # the grid ideal_env built
+                n_found = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny,
+                                    cell_start, order, spos, found, found_d2)
+            # the other copters firing in n's slot (the others crosstalk_path skips), once for n's S sonars, compacted
+            # without a branch (always write, advance on a match: with several slots a match is a coin flip the
+            # processor cannot predict)
+            for c in range(n_found):
+                m = found[c] if g.on else c
+                cand[n_cand] = m
+                n_cand += (slot[m] == slot[n]) & (m != n)
         for k in range(n_sonars):
-            path = crosstalk_path(n, k, sonar_buf, slot, sps, found, n_cand, spread) if geometric else np.inf
+            path = crosstalk_path(n, k, sonar_buf, slot, sps, cand, n_cand, spread, xt_buf[0]) if geometric else np.inf
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
 
 
