@@ -559,12 +559,12 @@ def test_ideal_readings_near_corners_and_bent_borders_match_reference(sonar):
         np.testing.assert_allclose(h1, h2, rtol=0, atol=1e-12)
 
 
-# ------------------------------------------------------------------ cross-talk: squared pre-tests vs plain loop
+# ------------------------------------------------------------------ cross-talk: the kernel vs the plain loop
 
 
 @njit(cache=True)
 def _crosstalk_plain(n, k, sonar_buf, slot, sp):
-    """crosstalk_path as it was before the squared-length pre-tests: a sqrt per emitter, then the comparisons."""
+    """The definition of crosstalk_path as a plain loop: every same-slot emitter, a sqrt each, then the comparisons."""
     rx = sonar_buf[n, k, 0]
     ry = sonar_buf[n, k, 1]
     ux = sonar_buf[n, k, 2]
@@ -640,7 +640,7 @@ def crosstalk_scenes(draw):
 
 @crosstalk_scene_settings
 @given(scene=crosstalk_scenes())
-def test_crosstalk_squared_pretests_bit_identical(scene):
+def test_crosstalk_path_equals_the_plain_loop_bit_for_bit(scene):
     buf, slot, sp = scene
     out = _crosstalk_both(buf, slot, sp)
     np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
@@ -696,7 +696,7 @@ def test_crosstalk_copter_level_rejection_bit_identical(scene):
     np.testing.assert_array_equal(out[..., 0].view(np.int64), out[..., 1].view(np.int64))
 
 
-def test_crosstalk_pretests_bulk_random():
+def test_crosstalk_path_bulk_random():
     rng = np.random.default_rng(11)
     _, _, sp = setup(n=10)
     hits = 0
