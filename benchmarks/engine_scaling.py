@@ -52,10 +52,10 @@ def settled(n: int, grid: bool, wall_check: str = "none", updates=None):
     return sim, state
 
 
-def us_per_copter_step(n: int, grid: bool, steps: int, wall_check: str = "none", updates=None) -> float:
+def us_per_copter_step(n: int, grid: bool, steps: int, wall_check: str = "none", updates=None, settled_run=None):
     """Best of 3 steady-state rollouts of ``steps`` steps, µs of thread CPU time per copter-step; ``updates``: config
-    keys changed from :func:`config`."""
-    sim, state = settled(n, grid, wall_check, updates)
+    keys changed from :func:`config`; ``settled_run``: that flight's (sim, state) from :func:`settled`, if at hand."""
+    sim, state = settled_run or settled(n, grid, wall_check, updates)
     best = math.inf
     for _ in range(3):
         t0 = time.thread_time()
@@ -115,10 +115,11 @@ def measure(sizes, brute_max, step_budget: int = 20_000, wall_check: str = "none
     :func:`copters_in_range`. Each timed rollout runs max(5, step_budget // N) steps."""
     for n in sizes:
         steps = max(5, step_budget // n)
-        g = us_per_copter_step(n, True, steps, wall_check)
+        grid_run = settled(n, True, wall_check)  # timed, and counted for the copters in range
+        crosstalk_peers, ranging_peers = copters_in_range(*grid_run)
+        g = us_per_copter_step(n, True, steps, wall_check, settled_run=grid_run)
         b = us_per_copter_step(n, False, steps, wall_check) if n <= brute_max else None
         local = us_per_copter_step(n, True, steps, wall_check, LOCAL_ONLY)
-        crosstalk_peers, ranging_peers = copters_in_range(*settled(n, True, wall_check))
         yield dict(N=n, grid_us=g, brute_us=b, local_us=local, crosstalk_peers=crosstalk_peers,
                    ranging_peers=ranging_peers)
 

@@ -463,6 +463,11 @@ def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]
     return effects, tally
 
 
+def pair_count(tally: dict[str, tuple[int, int]], a: str, b: str) -> tuple[int, int]:
+    """(both named, trials) of the pair of effects a and b in a :func:`pair_tally`, in either order; (0, 0) if none."""
+    return tally.get(f"{a}+{b}") or tally.get(f"{b}+{a}") or (0, 0)
+
+
 def pair_grid(rows: list[dict], target: float = 0.9) -> str:
     """The pair trials of ``rows`` as an effect × effect grid (Markdown): each cell k/n, the trials of pair a+b in
     which both effects were named; "—" where the two cannot be simulated together (or no trial ran). A last line
@@ -474,7 +479,7 @@ def pair_grid(rows: list[dict], target: float = 0.9) -> str:
     for i, a in enumerate(effects[:-1]):
         cells = []
         for j, b in enumerate(effects[1:], start=1):
-            k, n = tally.get(f"{a}+{b}") or tally.get(f"{b}+{a}") or (0, 0)
+            k, n = pair_count(tally, a, b)
             cells.append("" if j <= i else (f"{k}/{n}" if n else "—"))
         lines.append(f"| {a} | " + " | ".join(cells) + " |")
     shares = {p: k / n for p, (k, n) in tally.items()}

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .validate import pair_tally
+from .validate import pair_count, pair_tally
 
 __all__ = ["pair_grid_figure"]
 
@@ -31,7 +31,7 @@ def pair_grid_figure(rows: list[dict], path: str | Path, target: float = 0.9) ->
         for j, b in enumerate(effects[1:], start=1):
             if j <= i:
                 continue
-            k, n = tally.get(f"{a}+{b}") or tally.get(f"{b}+{a}") or (0, 0)
+            k, n = pair_count(tally, a, b)
             if not n:
                 ax.text(j - 1, i, "—", ha="center", va="center", color="0.5", fontsize=8)
                 continue
