@@ -32,7 +32,11 @@ def compiled_functions() -> dict[int, str]:
     found: dict[int, str] = {}
     libraries = {}
     for obj in gc.get_objects():
-        if isinstance(obj, CPUDispatcher):
+        try:
+            is_dispatcher = isinstance(obj, CPUDispatcher)
+        except ReferenceError:  # a weakref.proxy whose object is gone (isinstance asks it for its class)
+            continue
+        if is_dispatcher:
             for cres in list(obj.overloads.values()):
                 libraries[id(cres.library)] = cres.library
     for lib in libraries.values():

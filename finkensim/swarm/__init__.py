@@ -21,8 +21,8 @@ Each step k (the state after k steps, ``WorldState.step``), for every environmen
    :class:`~finkensim.behaviours.open_loop.RandomWalk`) or ``hover``;
 3. **step** — :func:`~finkensim.world.step_env` (copters, contacts, Bernoulli plates).
 
-:meth:`SwarmSim.rollout` runs T steps of B environments in ONE numba kernel
-(:func:`finkensim.swarm.kernel.swarm_rollout`: ``prange`` over B, the T loop inside, buffers allocated once
+:meth:`SwarmSim.rollout` runs T steps of B environments in compiled code
+(:func:`finkensim.swarm.kernel.swarm_rollout`: B split over numba's threads, the T loop inside, buffers allocated once
 per environment, no Python per step). Besides the sensor readings and commands it can record the state
 before each step (pose, velocity, acceleration, yaw rate, plate angles) and the sonars' error-free
 distances and hit types (:data:`RECORDABLE`), so a flight log needs nothing else.

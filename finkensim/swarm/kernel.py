@@ -1,7 +1,7 @@
 """The compiled closed loop: T steps of sense → behave → step for B environments in one numba kernel.
 
-:func:`swarm_rollout` runs ``prange`` over the environments with the T loop inside (:func:`swarm_env`),
-work buffers allocated once per environment, no Python per step. The loop body calls non-inlined twins
+:func:`swarm_rollout` splits the environments over numba's threads (:func:`rollout_range` on each share, a ``nogil``
+kernel: :mod:`finkensim.kernels.threads`) with the T loop inside (:func:`swarm_env`), work buffers allocated once per environment, no Python per step. The loop body calls non-inlined twins
 of the per-environment kernels (the same Python functions compiled as functions): identical results,
 and a cold compilation of ≈ 20 s instead of about a minute with everything inlined.
 
@@ -19,7 +19,7 @@ Arguments are flat NamedTuple records: :class:`~finkensim.world.WorldArrays` (wo
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..behaviours.attraction import attraction_env, body_to_world_env
 from ..behaviours.random_walk import random_walk_env
@@ -28,11 +28,12 @@ from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
+from ..kernels.threads import run_ranges
 from ..kernels.twin import INTERNAL, twin
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
-__all__ = ["swarm_env", "swarm_rollout"]
+__all__ = ["swarm_env", "rollout_range", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS"]
 
 
 # the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
@@ -110,7 +111,7 @@ def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g
 @njit(cache=True, **INTERNAL)
 def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
     """``run.n_steps`` steps of the closed loop for environment b, in place (the body of
-    :func:`swarm_rollout`'s ``prange`` loop). Each step k: 1. sense (sonars on the plates displaced by
+    :func:`rollout_range`'s loop). Each step k: 1. sense (sonars on the plates displaced by
     their current angles, down sonar, ranging, IMU + dead reckoning), 2. behave (wall check, then the
     built-in controller ``run.kind``), 3. :func:`~finkensim.world.step_env`. beacons (M, 2) m; grid: the
     copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`)."""
@@ -184,11 +185,24 @@ def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp,
         step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True)
+def rollout_range(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
+    """:func:`swarm_env` for environments span[0] … span[1] − 1, one after another (one thread's share of
+    :func:`swarm_rollout`; releases the GIL)."""
+    for b in range(span[0], span[1]):
+        swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid)
+
+
+#: rollouts of fewer copter-steps (B · N · T) than this run on the calling thread alone: handing a share to another
+#: thread costs ≈ 0.15 ms (:mod:`finkensim.kernels.threads`), the work of ≈ 100 copter-steps of the full workload
+PARALLEL_MIN_COPTER_STEPS = 1024
+
+
 def swarm_rollout(w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
-    """``run.n_steps`` steps of the closed loop for the B environments of ``w``/``mem``, in place:
-    ``prange`` over B, the T loop inside (:func:`swarm_env`). ``rec`` arrays are filled when their
-    leading dimension is n_steps (else 0)."""
-    for b in prange(w.pos.shape[0]):
-        # np.int64: the prange index is typed uint64 in one numba pass and int64 in another (two compilations)
-        swarm_env(np.int64(b), w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid)
+    """``run.n_steps`` steps of the closed loop for the B environments of ``w``/``mem``, in place: the environments
+    split over numba's threads (:func:`~finkensim.kernels.threads.run_ranges`) when the call has at least
+    :data:`PARALLEL_MIN_COPTER_STEPS` copter-steps, the T loop inside each (:func:`swarm_env`); the same results
+    either way. ``rec`` arrays are filled when their leading dimension is n_steps (else 0)."""
+    B, N = w.pos.shape[0], w.pos.shape[1]
+    run_ranges(rollout_range, B, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid,
+               parallel=B * N * run.n_steps >= PARALLEL_MIN_COPTER_STEPS)
