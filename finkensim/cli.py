@@ -342,7 +342,8 @@ def _add_gap_validate(sub) -> None:
 def cmd_gap_validate(args) -> int:
     prog = args.prog
     from .atomic import write_atomic
-    from .gap.validate import CASES, confusion, expand_cases, get_case
+    from .gap.validate import CASES, expand_cases, get_case
+    from .gap.validate_tables import confusion
     from .gap.validate_sweep import run_trials
 
     cases = expand_cases(args.cases, args.pairs)

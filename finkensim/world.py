@@ -35,6 +35,7 @@ from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.cellgrid import engine_grid, env_grid, grid_params
 from .kernels.geometry import nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
+from .kernels.threads import run_ranges
 
 
 class WorldArrays(NamedTuple):
@@ -173,10 +174,12 @@ def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt, g):
         step_env(w, b, cmd_v[b], cmd_w[b], cp, hp, geo, dt, dist_buf, gap_buf, g, env_grid(g, b))
 
 
-@njit(cache=True, parallel=True)
-def _init_positions(seed, env_ids, n, width, length, radius, min_sep, pos, yaw):
-    """Uniform random placement at least ``min_sep`` apart (relaxed by half after 2000 failed tries)."""
-    for b in prange(env_ids.shape[0]):
+@njit(cache=True, nogil=True)
+def _init_positions(span, seed, env_ids, n, width, length, radius, min_sep, pos, yaw):
+    """Uniform random placement at least ``min_sep`` apart (relaxed by half after 2000 failed tries) of environments
+    span[0] … span[1] − 1 (:func:`~finkensim.kernels.threads.run_ranges` splits them over threads: a ``prange`` here
+    cost a second of cold compile for a kernel that runs once per ``init``)."""
+    for b in range(span[0], span[1]):
         sep = min_sep
         for i in range(n):
             key = counter_key(seed, env_ids[b], 0, i, STREAM_INIT)
@@ -252,7 +255,8 @@ class World:
             raise ConfigError(f"copters.radius = {r}: a copter does not fit in the {c.arena.width} x {c.arena.length} m arena")
         pos = np.zeros((B, N, 2))
         yaw0 = np.zeros((B, N))
-        _init_positions(seed, env_ids, N, c.arena.width, c.arena.length, r, c.copters.min_separation, pos, yaw0)
+        run_ranges(_init_positions, env_ids.shape[0], seed, env_ids, N, c.arena.width, c.arena.length, r,
+                   c.copters.min_separation, pos, yaw0)
         if N > 1 and positions is None:
             if N <= 200:  # dense pair distances, all environments at once
                 d = np.sqrt(((pos[:, :, None, :] - pos[:, None, :, :]) ** 2).sum(-1))

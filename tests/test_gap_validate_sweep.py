@@ -13,7 +13,8 @@ from finkensim.config import load_config
 from finkensim.flightlog import FlightLog
 from finkensim.gap import validate_sweep
 from finkensim.gap.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
-from finkensim.gap.validate import CASES, all_pairs, confusion, get_case, pair_case, pair_grid, wilson
+from finkensim.gap.validate import CASES, all_pairs, get_case, pair_case
+from finkensim.gap.validate_tables import confusion, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .validate import pair_count, pair_tally
+from .validate_tables import pair_count, pair_tally
 
 __all__ = ["pair_grid_figure"]
 

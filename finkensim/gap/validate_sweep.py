@@ -128,8 +128,8 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
 
 def summarize(out: Path) -> str:
     """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not; with pair trials also
-    their effect × effect grid (:func:`~finkensim.gap.validate.pair_grid`)."""
-    from .validate import confusion, pair_grid
+    their effect × effect grid (:func:`~finkensim.gap.validate_tables.pair_grid`)."""
+    from .validate_tables import confusion, pair_grid
 
     rows = list(load_done(Path(out) / "trials.jsonl").values())
     if not rows:

@@ -1,7 +1,7 @@
 """The compiled closed loop: T steps of sense → behave → step for B environments in one numba kernel.
 
-:func:`swarm_rollout` splits the environments over numba's threads (:func:`rollout_range` on each share, a ``nogil``
-kernel: :mod:`finkensim.kernels.threads`) with the T loop inside (:func:`swarm_env`), work buffers allocated once per environment, no Python per step. The loop body calls non-inlined twins
+:func:`swarm_rollout` splits the environments over numba's threads (:func:`swarm_env` on each share, a ``nogil``
+kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per environment, no Python per step. The loop body calls non-inlined twins
 of the per-environment kernels (the same Python functions compiled as functions): identical results,
 and a cold compilation of ≈ 20 s instead of about a minute with everything inlined.
 
@@ -33,7 +33,7 @@ from ..kernels.twin import INTERNAL, twin
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
-__all__ = ["swarm_env", "rollout_range", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS"]
+__all__ = ["swarm_env", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS"]
 
 
 # the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
@@ -108,89 +108,85 @@ def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g
             rec.cmd_yaw_rate[t, b, n] = cmd_w[n]
 
 
-@njit(cache=True, **INTERNAL)
-def swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
-    """``run.n_steps`` steps of the closed loop for environment b, in place (the body of
-    :func:`rollout_range`'s loop). Each step k: 1. sense (sonars on the plates displaced by
-    their current angles, down sonar, ranging, IMU + dead reckoning), 2. behave (wall check, then the
+@njit(cache=True, nogil=True, no_cfunc_wrapper=True)  # called from Python only: no C callback wrapper
+def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
+    """``run.n_steps`` steps of the closed loop for environments span[0] … span[1] − 1, one after another, in place
+    (one thread's share of :func:`swarm_rollout`; releases the GIL). Each step k: 1. sense (sonars on the plates
+    displaced by their current angles, down sonar, ranging, IMU + dead reckoning), 2. behave (wall check, then the
     built-in controller ``run.kind``), 3. :func:`~finkensim.world.step_env`. beacons (M, 2) m; grid: the
-    copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`)."""
-    N = w.pos.shape[1]
-    S = geo.plate_a.shape[0]
-    R = N + beacons.shape[0]
-    seed = run.seed
-    env = run.env_ids[b]
-    pos = w.pos[b]
-    yaw = w.yaw[b]
-    # work buffers, once per environment
-    pa = np.empty((S, 2))
-    pb = np.empty((S, 2))
-    sonar_buf = np.empty((N, N_SONARS, 4))
-    dist = np.empty((N, N_SONARS))
-    hit_kind = np.empty((N, N_SONARS), dtype=np.int64)
-    hit = np.empty((N, N_SONARS, 2))
-    slot = np.zeros(N, dtype=np.int64)
-    son = np.full((N, N_SONARS), sp.max_range)
-    alt = np.full(N, sp.altitude)
-    down = np.empty(N)
-    # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which reads
-    # zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry read is
-    # written first at each step (all of them, or those in range: see `fill` below), so the rows need no zeroing,
-    # and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's zeroing of all
-    # of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
-    if run.do_ranging:
-        rng = run.ranging_rows[b]
-    else:
-        rng = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
-    imu_a = np.zeros((N, 2))
-    imu_g = np.zeros(N)
-    fail_buf = np.zeros((N, N_SONARS), dtype=np.bool_)
-    cmd_body = np.zeros((N, 2))
-    cmd_v = np.zeros((N, 2))
-    cmd_w = np.zeros(N)
-    dist_buf = np.empty(geo.seg_a.shape[0])
-    gap_buf = np.empty(N)
-    grid_b = env_grid(grid, b)
-    # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
-    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
-    # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
-    # ranging row need not be written at every step
-    fill = rec.ranging.shape[0] > 0 or not near_on
-    for t in range(run.n_steps):
-        k = run.step0 + t
-        _record_state(t, b, w, rec)
-        # 1. sense
-        if run.do_sonar:
-            plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-            sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
-                      son, grid, grid_b)
-        if run.do_down:
-            down_twin(alt, sp, seed, env, k, down)
-        if run.do_ranging:
-            ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
-        if run.do_imu:
-            imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
-            dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
-        # 2. behave
-        if run.do_sonar:
-            wall_check_twin(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
-                           mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b], (pos, grid, grid_b, near_on))
-        if run.kind == KIND_ATTRACTION:
-            attraction_twin(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
-            body_to_world_twin(yaw, cmd_body, cmd_v)
-        elif run.kind == KIND_RANDOM_WALK:
-            random_walk_twin(pos, seed, env, k, rw, cmd_v, cmd_w)
-        _record_step(t, b, rec, son, dist, hit_kind, mem.wall[b], down, rng, imu_a, imu_g, cmd_v, cmd_w)
-        # 3. step
-        step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
+    copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`).
 
-
-@njit(cache=True, nogil=True)
-def rollout_range(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
-    """:func:`swarm_env` for environments span[0] … span[1] − 1, one after another (one thread's share of
-    :func:`swarm_rollout`; releases the GIL)."""
+    The environment loop is here, not in a caller: numba links every callee's code into its caller and optimizes it
+    again, so each level of calls above the engine costs seconds of cold compile."""
     for b in range(span[0], span[1]):
-        swarm_env(b, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid)
+        N = w.pos.shape[1]
+        S = geo.plate_a.shape[0]
+        R = N + beacons.shape[0]
+        seed = run.seed
+        env = run.env_ids[b]
+        pos = w.pos[b]
+        yaw = w.yaw[b]
+        # work buffers, once per environment
+        pa = np.empty((S, 2))
+        pb = np.empty((S, 2))
+        sonar_buf = np.empty((N, N_SONARS, 4))
+        dist = np.empty((N, N_SONARS))
+        hit_kind = np.empty((N, N_SONARS), dtype=np.int64)
+        hit = np.empty((N, N_SONARS, 2))
+        slot = np.zeros(N, dtype=np.int64)
+        son = np.full((N, N_SONARS), sp.max_range)
+        alt = np.full(N, sp.altitude)
+        down = np.empty(N)
+        # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which reads
+        # zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry read is
+        # written first at each step (all of them, or those in range: see `fill` below), so the rows need no zeroing,
+        # and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's zeroing of all
+        # of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
+        if run.do_ranging:
+            rng = run.ranging_rows[b]
+        else:
+            rng = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
+        imu_a = np.zeros((N, 2))
+        imu_g = np.zeros(N)
+        fail_buf = np.zeros((N, N_SONARS), dtype=np.bool_)
+        cmd_body = np.zeros((N, 2))
+        cmd_v = np.zeros((N, 2))
+        cmd_w = np.zeros(N)
+        dist_buf = np.empty(geo.seg_a.shape[0])
+        gap_buf = np.empty(N)
+        grid_b = env_grid(grid, b)
+        # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
+        near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
+        # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
+        # ranging row need not be written at every step
+        fill = rec.ranging.shape[0] > 0 or not near_on
+        for t in range(run.n_steps):
+            k = run.step0 + t
+            _record_state(t, b, w, rec)
+            # 1. sense
+            if run.do_sonar:
+                plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+                sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
+                          son, grid, grid_b)
+            if run.do_down:
+                down_twin(alt, sp, seed, env, k, down)
+            if run.do_ranging:
+                ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
+            if run.do_imu:
+                imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
+                dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
+            # 2. behave
+            if run.do_sonar:
+                wall_check_twin(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
+                               mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b], (pos, grid, grid_b, near_on))
+            if run.kind == KIND_ATTRACTION:
+                attraction_twin(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
+                body_to_world_twin(yaw, cmd_body, cmd_v)
+            elif run.kind == KIND_RANDOM_WALK:
+                random_walk_twin(pos, seed, env, k, rw, cmd_v, cmd_w)
+            _record_step(t, b, rec, son, dist, hit_kind, mem.wall[b], down, rng, imu_a, imu_g, cmd_v, cmd_w)
+            # 3. step
+            step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
 
 
 #: rollouts of fewer copter-steps (B · N · T) than this run on the calling thread alone: handing a share to another
@@ -204,5 +200,5 @@ def swarm_rollout(w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp
     :data:`PARALLEL_MIN_COPTER_STEPS` copter-steps, the T loop inside each (:func:`swarm_env`); the same results
     either way. ``rec`` arrays are filled when their leading dimension is n_steps (else 0)."""
     B, N = w.pos.shape[0], w.pos.shape[1]
-    run_ranges(rollout_range, B, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid,
+    run_ranges(swarm_env, B, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid,
                parallel=B * N * run.n_steps >= PARALLEL_MIN_COPTER_STEPS)

@@ -1,0 +1,113 @@
+"""The tables of a withheld-effect validation run (:mod:`finkensim.gap.validate`): the per-case summary with Wilson
+intervals and the confusion matrix (:func:`confusion`), and the pair trials as an effect × effect grid
+(:func:`pair_grid`; :func:`pair_tally` / :func:`pair_count` also feed the figure of :mod:`.validate_plot`)."""
+from __future__ import annotations
+
+import math
+
+from .validate import CASES
+
+__all__ = ["wilson", "confusion", "pair_tally", "pair_count", "pair_grid"]
+
+
+def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval (95 % by default) of a binomial proportion k/n."""
+    if n == 0:
+        return math.nan, math.nan
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def confusion(rows: list[dict]):
+    """Per-case summary (with Wilson 95 % intervals; a last row pools every trial) and confusion matrix (true case ×
+    verdict) as a DataFrame and Markdown."""
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    if "flagged_locations" not in df:
+        df["flagged_locations"] = math.nan
+    if "correction_shrink" not in df:
+        df["correction_shrink"] = math.nan
+    if "found_by" not in df:  # rows from before the targeted test
+        df["found_by"] = None
+    df["verdict"] = [("no gap" if not r["significant"] else ("unexplained" if r["unexplained"] else r["named"]))
+                     for r in rows]
+    summary = df.groupby("case", sort=False).agg(
+        trials=("case", "size"), correct_n=("correct", "sum"), correct=("correct", "mean"),
+        location_right=("location_ok", lambda s: s.dropna().astype(float).mean() if s.notna().any() else float("nan")),
+        param_error_median=("param_error", "median"), shrink_mean=("shrink_heldout", "mean"),
+        shrink_max=("shrink_heldout", "max"), correction_shrink=("correction_shrink", "mean"),
+        flagged_none=("flagged_locations", lambda s: float((s.fillna(0) == 0).mean())),
+        targeted=("found_by", lambda s: int((s == "targeted").sum())), seconds_mean=("seconds", "mean"))
+
+    def pct(x):
+        return "n/a" if x != x else f"{x:.0%}"
+
+    lines = ["| case | trials | correct (Wilson 95 % CI) | no location flagged | location right | parameter error "
+             "(median) | shrink mean / max | correction shrink | found by the targeted test | s per trial |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for case, r in summary.iterrows():
+        lo, hi = wilson(int(r["correct_n"]), int(r["trials"]))
+        pe = "n/a" if r["param_error_median"] != r["param_error_median"] else f"{r['param_error_median']:.1%}"
+        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | {pct(r['flagged_none'])} | "
+                     f"{pct(r['location_right'])} | {pe} | {r['shrink_mean']:.2f} / {r['shrink_max']:.2f} | "
+                     f"{pct(r['correction_shrink'])} | {int(r['targeted'])} | {r['seconds_mean']:.0f} |")
+    n, k = len(df), int(df["correct"].sum())
+    lo, hi = wilson(k, n)
+    loc = df["location_ok"].dropna().astype(float)
+    lines.append(f"| **all {summary.shape[0]} cases** | {n} | {k / n:.1%} ({lo:.1%}–{hi:.1%}) | "
+                 f"{pct(float((df['flagged_locations'].fillna(0) == 0).mean()))} | "
+                 f"{pct(loc.mean() if len(loc) else float('nan'))} | | {df['shrink_heldout'].mean():.2f} / "
+                 f"{df['shrink_heldout'].max():.2f} | | {int((df['found_by'] == 'targeted').sum())} | {df['seconds'].mean():.0f} |")
+    mat = pd.crosstab(df["case"], df["verdict"]).reindex(summary.index)
+    lines += ["", "Confusion matrix (rows: withheld effect; columns: verdict, the first effect named):", ""]
+    cols = list(mat.columns)
+    lines.append("| case | " + " | ".join(cols) + " |")
+    lines.append("| --- |" + " --- |" * len(cols))
+    for case, r in mat.iterrows():
+        lines.append(f"| {case} | " + " | ".join(str(int(x)) if x == x else "0" for x in r.values) + " |")
+    return df, "\n".join(lines) + "\n"
+
+
+def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]:
+    """The pair trials of ``rows``: (the effects they combine, in catalogue order; {"a+b": (trials with both named,
+    trials)})."""
+    tally: dict[str, tuple[int, int]] = {}
+    for r in rows:
+        if "+" in r["case"]:
+            k, n = tally.get(r["case"], (0, 0))
+            tally[r["case"]] = (k + bool(r["correct"]), n + 1)
+    effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
+    return effects, tally
+
+
+def pair_count(tally: dict[str, tuple[int, int]], a: str, b: str) -> tuple[int, int]:
+    """(both named, trials) of the pair of effects a and b in a :func:`pair_tally`, in either order; (0, 0) if none."""
+    return tally.get(f"{a}+{b}") or tally.get(f"{b}+{a}") or (0, 0)
+
+
+def pair_grid(rows: list[dict], target: float = 0.9) -> str:
+    """The pair trials of ``rows`` as an effect × effect grid (Markdown): each cell k/n, the trials of pair a+b in
+    which both effects were named; "—" where the two cannot be simulated together (or no trial ran). A last line
+    counts the pairs whose share reaches ``target`` (the issue's "every pair both named in ≥ 90 %")."""
+    effects, tally = pair_tally(rows)
+    if not tally:
+        return ""
+    lines = ["| both named | " + " | ".join(effects[1:]) + " |", "| --- |" + " ---: |" * (len(effects) - 1)]
+    for i, a in enumerate(effects[:-1]):
+        cells = []
+        for j, b in enumerate(effects[1:], start=1):
+            k, n = pair_count(tally, a, b)
+            cells.append("" if j <= i else (f"{k}/{n}" if n else "—"))
+        lines.append(f"| {a} | " + " | ".join(cells) + " |")
+    shares = {p: k / n for p, (k, n) in tally.items()}
+    met = sum(x >= target for x in shares.values())
+    worst = min(shares, key=shares.get)
+    lo, hi = wilson(*tally[worst])
+    lines += ["", f"Pairs with both effects named in ≥ {target:.0%} of their trials: {met} of {len(tally)}; lowest "
+              f"{worst} {tally[worst][0]}/{tally[worst][1]} (Wilson 95 % {lo:.0%}–{hi:.0%}); trials per pair "
+              f"{min(n for _, n in tally.values())}–{max(n for _, n in tally.values())}."]
+    return "\n".join(lines) + "\n"
