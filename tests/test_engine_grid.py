@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import pickle
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -19,7 +20,7 @@ from finkensim.config import Config
 from finkensim.copters import update_contacts_env
 from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_params
 from finkensim.sensors.ranging import RangingModel
-from finkensim.sensors.ranging_kernels import ranging_grid_env
+from finkensim.swarm.kernel import ranging_twin
 from finkensim.swarm import SwarmSim
 from finkensim.swarm.state import concat_records
 from finkensim.world import World
@@ -89,8 +90,10 @@ def test_contacts_on_the_grid_equal_the_brute_force(scene):
 
 @njit(cache=True)
 def _ranging(pos, beacons, p, g, out):
+    # the engine's compiled ranging_grid_env (its twin, with the argument types swarm_env passes): the code under
+    # test, compiled once for the engine and this test (inlining it here cost ≈ 25 s of cold compile)
     for b in range(pos.shape[0]):
-        ranging_grid_env(pos[b], beacons, np.int64(7), np.int64(b), np.int64(3), p, out[b], g, env_grid(g, b))
+        ranging_twin(pos[b], beacons, np.int64(7), np.int64(b), np.int64(3), p, out[b], g, env_grid(g, b), True)
 
 
 @pytest.fixture(scope="module")
@@ -205,6 +208,9 @@ def test_a_pickled_or_copied_sim_flies_the_same_and_leaves_the_kept_rows_behind(
     for copy_of in (lambda s: pickle.loads(pickle.dumps(s)), copy.deepcopy):
         clone = copy_of(sim)
         assert clone.cfg == cfg and getattr(clone._work, "ranging_rows", None) is None
+        # the same numba types as the original's (read-only model tables), so the copy's flight compiles nothing new
+        assert numba.typeof(clone.ranging.params) == numba.typeof(sim.ranging.params)
+        assert numba.typeof(clone.ranging.ideal_params) == numba.typeof(sim.ranging.ideal_params)
         _, r = clone.rollout(clone.init(n_envs=2, seed=3), 30, record=["pose", "sonar"])
         np.testing.assert_array_equal(r.pose, r_0.pose)
         np.testing.assert_array_equal(r.sonar, r_0.sonar)

@@ -106,6 +106,14 @@ class RangingModel:
         self.params = self._params()
         self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE))
 
+    def __setstate__(self, state):
+        # pickle (process pools, Dask, deepcopy) restores every array writeable; the kernels' records must keep their
+        # read-only arrays, or each compiled kernel that takes them (the whole closed-loop engine among them) is
+        # compiled again for the second type: ≈ 30 s in each worker process of a sweep
+        self.__dict__.update(state)
+        self.params = _readonly_params(self.params)
+        self.ideal_params = _readonly_params(self.ideal_params)
+
     @classmethod
     def from_config(cls, cfg, mixture: Mixture | None = None, table_tol: float = 1e-4) -> "RangingModel":
         """From a ``RangingConfig`` (``cfg.ranging``); ``mixture_file`` is loaded unless ``mixture`` is given."""
@@ -161,6 +169,11 @@ def _ro(a, dtype) -> np.ndarray:
     a = np.array(a, dtype=dtype, order="C", copy=True)
     a.setflags(write=False)
     return a
+
+
+def _readonly_params(p: RangingParams) -> RangingParams:
+    """``p`` with its arrays read-only (the one numba type of :class:`RangingParams`)."""
+    return p._replace(prob=_ro(p.prob, np.float64), alias=_ro(p.alias, np.int32), comp=_ro(p.comp, np.float64))
 
 
 @functools.lru_cache(maxsize=16)
