@@ -26,7 +26,7 @@ from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.twin import INTERNAL
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, step_twin
+from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, sonar_work_buffers, step_twin
 from .state import NO_RANGING_ROWS, RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
@@ -70,7 +70,7 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
 
 @njit(cache=True, inline="always")
 def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
-    """Environment b of :func:`control_step`; ``work`` = (:func:`_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
+    """Environment b of :func:`control_step`; ``work`` = (:func:`~finkensim.swarm.kernel.sonar_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
     (no yaw-rate commands), dist_buf (S,), gap_buf (N,), the chunk's own empty grid buffers): scratch arrays, reused
     from one environment to the next."""
     bufs, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
@@ -83,15 +83,6 @@ def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, i
     _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b)
 
 
-@njit(cache=True, **INTERNAL)
-def _work_buffers(N, S):
-    """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
-    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of
-    :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
-    return (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
-            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
-
-
 @njit(cache=True, error_model="numpy", **INTERNAL)
 def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
     """Chunk c of n_chunks equal runs of environments of :func:`control_step`, with one set of scratch arrays
@@ -99,7 +90,7 @@ def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp
     B = w.pos.shape[0]
     N = w.pos.shape[1]
     S = geo.plate_a.shape[0]
-    work = (_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N),
+    work = (sonar_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N),
             no_grid_buffers())
     for b in range(c * B // n_chunks, (c + 1) * B // n_chunks):
         _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work)

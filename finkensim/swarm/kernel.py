@@ -33,7 +33,7 @@ from ..kernels.twin import INTERNAL, twin
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
-__all__ = ["swarm_env", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS"]
+__all__ = ["swarm_env", "swarm_rollout", "sonar_work_buffers", "PARALLEL_MIN_COPTER_STEPS"]
 
 
 # the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
@@ -48,6 +48,15 @@ attraction_twin = twin(attraction_env)
 body_to_world_twin = twin(body_to_world_env)
 random_walk_twin = twin(random_walk_env)
 step_twin = twin(step_env)
+
+
+@njit(cache=True, **INTERNAL)
+def sonar_work_buffers(N, S):
+    """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
+    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of
+    :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
+    return (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
+            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
 
 
 @njit(cache=True, **INTERNAL)
@@ -127,13 +136,7 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
         pos = w.pos[b]
         yaw = w.yaw[b]
         # work buffers, once per environment
-        pa = np.empty((S, 2))
-        pb = np.empty((S, 2))
-        sonar_buf = np.empty((N, N_SONARS, 4))
-        dist = np.empty((N, N_SONARS))
-        hit_kind = np.empty((N, N_SONARS), dtype=np.int64)
-        hit = np.empty((N, N_SONARS, 2))
-        slot = np.zeros(N, dtype=np.int64)
+        pa, pb, sonar_buf, dist, hit_kind, hit, slot = sonar_work_buffers(N, S)
         son = np.full((N, N_SONARS), sp.max_range)
         alt = np.full(N, sp.altitude)
         down = np.empty(N)
