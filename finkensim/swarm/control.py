@@ -26,7 +26,8 @@ from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.twin import INTERNAL
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, sonar_work_buffers, step_twin
+from .kernel import (body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, sonar_work_buffers,
+                     step_twin)
 from .state import NO_RANGING_ROWS, RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
@@ -70,9 +71,9 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
 
 @njit(cache=True, inline="always")
 def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
-    """Environment b of :func:`control_step`; ``work`` = (:func:`~finkensim.swarm.kernel.sonar_work_buffers`, cmd_v (N, 2), cmd_w (N,) zeros
-    (no yaw-rate commands), dist_buf (S,), gap_buf (N,), the chunk's own empty grid buffers): scratch arrays, reused
-    from one environment to the next."""
+    """Environment b of :func:`control_step`; ``work`` = (:func:`~finkensim.swarm.kernel.sonar_work_buffers`,
+    cmd_v (N, 2), cmd_w (N,) zeros (no yaw-rate commands), dist_buf (S,), gap_buf (N,), the chunk's own empty grid
+    buffers): scratch arrays, reused from one environment to the next."""
     bufs, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
     # with the grid off, the chunk's own empty buffers: env_grid's views of the shared ones would be counted by
     # both threads on one reference count (an atomic on a contended cache line, per call)

@@ -1,7 +1,8 @@
 """The compiled closed loop: T steps of sense → behave → step for B environments in one numba kernel.
 
 :func:`swarm_rollout` splits the environments over numba's threads (:func:`swarm_env` on each share, a ``nogil``
-kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per environment, no Python per step. The loop body calls non-inlined twins
+kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per environment, no
+Python per step. The loop body calls non-inlined twins
 of the per-environment kernels (the same Python functions compiled as functions): identical results,
 and a cold compilation of ≈ 20 s instead of about a minute with everything inlined.
 
@@ -127,11 +128,16 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
 
     The environment loop is here, not in a caller: numba links every callee's code into its caller and optimizes it
     again, so each level of calls above the engine costs seconds of cold compile."""
+    N = w.pos.shape[1]
+    S = geo.plate_a.shape[0]
+    R = N + beacons.shape[0]
+    seed = run.seed
+    # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
+    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
+    # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
+    # ranging row need not be written at every step
+    fill = rec.ranging.shape[0] > 0 or not near_on
     for b in range(span[0], span[1]):
-        N = w.pos.shape[1]
-        S = geo.plate_a.shape[0]
-        R = N + beacons.shape[0]
-        seed = run.seed
         env = run.env_ids[b]
         pos = w.pos[b]
         yaw = w.yaw[b]
@@ -140,11 +146,11 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
         son = np.full((N, N_SONARS), sp.max_range)
         alt = np.full(N, sp.altitude)
         down = np.empty(N)
-        # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which reads
-        # zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry read is
-        # written first at each step (all of them, or those in range: see `fill` below), so the rows need no zeroing,
-        # and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's zeroing of all
-        # of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
+        # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which
+        # reads zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry
+        # read is written first at each step (all of them, or those in range: see `fill` above), so the rows need no
+        # zeroing, and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's
+        # zeroing of all of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
         if run.do_ranging:
             rng = run.ranging_rows[b]
         else:
@@ -158,19 +164,14 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
         dist_buf = np.empty(geo.seg_a.shape[0])
         gap_buf = np.empty(N)
         grid_b = env_grid(grid, b)
-        # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
-        near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
-        # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
-        # ranging row need not be written at every step
-        fill = rec.ranging.shape[0] > 0 or not near_on
         for t in range(run.n_steps):
             k = run.step0 + t
             _record_state(t, b, w, rec)
             # 1. sense
             if run.do_sonar:
                 plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-                sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k, (sonar_buf, dist, hit_kind, hit, slot),
-                          son, grid, grid_b)
+                sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k,
+                           (sonar_buf, dist, hit_kind, hit, slot), son, grid, grid_b)
             if run.do_down:
                 down_twin(alt, sp, seed, env, k, down)
             if run.do_ranging:
