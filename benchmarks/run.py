@@ -94,13 +94,18 @@ def measure(runners: dict, seconds: float, repeats: int) -> dict:
 
 
 def thread_variants(name: str, fn, threads) -> dict:
-    """``{name@k: run}`` for each numba thread count k (the fastest is reported, see module doc)."""
+    """``{name@k: run}`` for each numba thread count k (the fastest is reported, see module doc); each run restores
+    the calling thread's numba thread count."""
     import numba
 
     def make(k):
         def run(T):
+            before = numba.get_num_threads()
             numba.set_num_threads(k)
-            fn(T)
+            try:
+                fn(T)
+            finally:  # the caller's (a notebook's, a test's) thread count is not ours to keep
+                numba.set_num_threads(before)
         return run
 
     return {f"{name}@{k}": make(k) for k in threads}
