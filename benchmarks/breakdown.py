@@ -3,8 +3,8 @@
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
 B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's twins of the
 kernels, see :mod:`finkensim.swarm.kernel`), on states taken from a real run (the swarm after
-100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum. Not part of ``make bench``; numbers for
-the reply / issue, and a check after optimising a kernel.
+100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum (markdown); ``make bench`` puts the N = 10 table in its report,
+beside the comparison workload's cost on one thread.
 
 B defaults to 10 240 / N distinct environments (1024 at N = 10; at least 64), each timed only a few times: the ray casts branch on each environment's
 geometry, and with few environments timed many times (B = 64, 20 repetitions) the CPU's branch predictor learns
@@ -166,22 +166,39 @@ def breakdown(n: int, b: int = 1024, reps: int = 20, warm_steps: int = 100) -> d
                 plates_active=float(np.mean(dist < world.hinge_params.threshold)))
 
 
+def markdown(r: dict, compare_us: float | None = None) -> str:
+    """A :func:`breakdown` result as a markdown table (µs per env-step and share of each kernel, their sum); with
+    ``compare_us`` (the comparison workload's µs per env-step on one thread, same N and B) also the ratio of the sum
+    to it and the sum that 3× would allow."""
+    us = r["us_per_env_step"]
+    total = sum(v for k, v in us.items() if not k.startswith("  "))
+    L = [f"Where the full workload's time goes (`python -m benchmarks.breakdown`; N = {r['N']}, B = {r['B']}, one "
+         f"thread, each kernel timed alone on a settled swarm; plates within the hinge threshold "
+         f"{100 * r['plates_active']:.0f} %, exactly at rest {100 * r['plates_at_rest']:.0f} %):", "",
+         "| kernel | µs per env-step | share |", "|---|---:|---:|"]
+    for k, v in us.items():
+        sub = k.startswith("  ")
+        L.append(f"| {'&nbsp;&nbsp;' * sub}{k.strip()} | {v:.2f} | {'' if sub else f'{100 * v / total:.1f} %'} |")
+    L.append(f"| sum | {total:.2f} | {1e3 * total / r['N']:.0f} ns per copter-step |")
+    if compare_us:
+        L += ["", f"The comparison workload takes {compare_us:.2f} µs per env-step on one thread in this run: the sum "
+              f"above is {total / compare_us:.1f}× that; 3× would allow {3 * compare_us:.2f} µs."]
+    return "\n".join(L) + "\n"
+
+
+def run(n: int = 10, b: int | None = None) -> dict:
+    """:func:`breakdown` with the command line's defaults: B = 10 240 / N (at least 64), few repetitions."""
+    b = b if b is not None else max(64, 10240 // n)
+    return breakdown(n, b, reps=max(1, 2000 // (n * b) + 2))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[10, 100])
     ap.add_argument("--b", type=int, default=None, help="environments (default: 10240 // N, at least 64)")
     a = ap.parse_args(argv)
     for n in a.n:
-        b = a.b if a.b is not None else max(64, 10240 // n)
-        r = breakdown(n, b, reps=max(1, 2000 // (n * b) + 2))
-        top = [k for k in r["us_per_env_step"] if not k.startswith("  ")]
-        total = sum(r["us_per_env_step"][k] for k in top)
-        print(f"\nN={n} (B={b}, one thread; plates within threshold {100 * r['plates_active']:.0f} %, "
-              f"exactly at rest {100 * r['plates_at_rest']:.0f} %)")
-        for k, v in r["us_per_env_step"].items():
-            share = f"{100 * v / total:5.1f} %" if not k.startswith("  ") else ""
-            print(f"  {k:58s} {v:9.2f} µs/env-step  {share}")
-        print(f"  {'sum':58s} {total:9.2f} µs/env-step = {1e3 * total / n:.0f} ns/copter-step")
+        print(markdown(run(n, a.b)))
 
 
 if __name__ == "__main__":

@@ -359,6 +359,12 @@ def report(res: dict) -> str:
                 L.append(f"| {r['N']} | {r['B']} | {_rate(r['env_steps_per_s'])} | {_rate(r['copter_steps_per_s'])} | "
                          f"{r['threads']} | {_mem(r['peak_bytes_per_env'])} | {r['impl']} |")
     L.append("")
+    if res.get("breakdown"):
+        from .breakdown import markdown
+
+        by = (_find(res.get("compare"), N=10, B=res["breakdown"]["B"]) or {}).get("finkensim", {})
+        one = by.get("steps_per_s_by_threads", {}).get("1")  # env-steps/s on one thread
+        L.append(markdown(res["breakdown"], 1e6 / one if one else None))
     if res.get("envs"):
         from .envs_bench import markdown
 
@@ -455,6 +461,10 @@ def main(argv=None) -> int:
     if not a.quick and not a.no_finken:
         rows, status = bench_finken(ns, bs, seconds, repeats, log, threads)
         res["finken"] = dict(rows=rows, status=status)
+        if not status:  # where its µs go, kernel by kernel (one thread)
+            from . import breakdown
+
+            res["breakdown"] = breakdown.run(10)
     if not a.quick and not a.no_envs:
         from . import envs_bench
 

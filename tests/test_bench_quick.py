@@ -138,3 +138,28 @@ def test_perf_map_names_freshly_compiled_functions(tmp_path):
     assert addr in compiled_functions() and size > 0
     starts = sorted(a for a, _ in named.values())
     assert all(a + s <= b for (a, s), b in zip(sorted(named.values()), starts[1:]))  # no overlaps
+
+
+def test_breakdown_times_every_kernel_and_reports_against_the_comparison():
+    """``benchmarks.breakdown`` (in ``make bench``'s report) on a small swarm: every kernel timed (> 0), the parts no
+    larger than what contains them, and the markdown's sum and ratio from those figures."""
+    from benchmarks import breakdown
+
+    r = breakdown.breakdown(4, 8, reps=1)
+    us = r["us_per_env_step"]
+    assert all(v > 0 for v in us.values()) and len(us) == 8
+    assert 0.0 <= r["plates_at_rest"] <= 1.0 and 0.0 <= r["plates_active"] <= 1.0
+    total = sum(v for k, v in us.items() if not k.startswith("  "))
+    md = breakdown.markdown(r, compare_us=total / 4)
+    assert f"| sum | {total:.2f} |" in md and "the sum above is 4.0× that" in md
+    assert "N = 4, B = 8, one thread" in md and "comparison" not in breakdown.markdown(r)
+    # make bench's report takes the comparison's one-thread rate of the same N and B from the same run
+    from benchmarks.run import report
+
+    meta = dict(time="t", python="3", numpy="2", numba="0", numba_threads=2, cpus=2, load_start="0", load_end="0",
+                quick=False, threads=[1, 2])
+    cmp = dict(N=10, B=8, finkensim=dict(env_steps_per_s=3e5, copter_steps_per_s=3e6, threads=2,
+                                         steps_per_s_by_threads={"1": 2e5, "2": 3e5}, peak_bytes_per_env=1.0),
+               numpy=dict(env_steps_per_s=1e4, copter_steps_per_s=1e5, peak_bytes_per_env=1.0), ratio_numpy=30.0)
+    md = report(dict(meta=meta, compare=[cmp], breakdown=dict(r, N=10)))
+    assert "takes 5.00 µs per env-step on one thread" in md and f"3× would allow 15.00 µs" in md
