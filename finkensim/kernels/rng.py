@@ -10,6 +10,11 @@ the top 52 bits, centred, so they lie strictly inside (0, 1) and ``log(u)`` is f
 
 ``stream`` separates independent consumers (commands, sonar, ranging, ...); the constants
 below are the registry. Add a new constant rather than reusing one.
+
+The draws are called functions (``inline="never"``), not inlined into their callers' numba IR: they take only
+integers (no array reference counts to prune), LLVM inlines them once they are linked into a kernel, and numba's IR
+inlining re-ran its untyped pipeline on them at each of their ~170 call sites in the engine (cold compile of the full
+workload 24.0 / 24.8 → 20.1 / 21.4 s, alternating; the same machine code speed and the same numbers).
 """
 from __future__ import annotations
 
@@ -42,7 +47,7 @@ _TWO_PI = 2.0 * np.pi
 _HALF_PI = 0.5 * np.pi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="never")
 def mix64(z):
     """SplitMix64 finaliser: a bijective avalanche of one uint64."""
     z = (z ^ (z >> _S30)) * _M1
@@ -50,7 +55,7 @@ def mix64(z):
     return z ^ (z >> _S31)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="never")
 def counter_key(seed, env, step, copter, stream):
     """Key of one (seed, env, step, copter, stream) cell as uint64.
 
@@ -63,7 +68,7 @@ def counter_key(seed, env, step, copter, stream):
     return mix64(h ^ (np.uint64(stream) + _GOLDEN))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="never")
 def uniform(key, index):
     """The ``index``-th uniform of ``key``: a float64 strictly inside (0, 1).
 
@@ -73,7 +78,7 @@ def uniform(key, index):
     return (np.float64(z >> _S12) + 0.5) * _INV52
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="never")
 def normal(key, index):
     """A standard normal from uniforms ``2*index`` and ``2*index+1`` (Box–Muller, cosine branch).
 
