@@ -3,8 +3,8 @@
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
 B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's twins of the
 kernels, see :mod:`finkensim.swarm.kernel`), on states taken from a real run (the swarm after
-100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum (markdown); ``make bench`` puts the N = 10 table in its report,
-beside the comparison workload's cost on one thread.
+100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum (markdown);
+``make bench`` puts the N = 10 table in its report, beside the comparison workload's cost on one thread.
 
 B defaults to 10 240 / N distinct environments (1024 at N = 10; at least 64), each timed only a few times: the ray casts branch on each environment's
 geometry, and with few environments timed many times (B = 64, 20 repetitions) the CPU's branch predictor learns

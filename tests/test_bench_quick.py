@@ -141,8 +141,8 @@ def test_perf_map_names_freshly_compiled_functions(tmp_path):
 
 
 def test_breakdown_times_every_kernel_and_reports_against_the_comparison():
-    """``benchmarks.breakdown`` (in ``make bench``'s report) on a small swarm: every kernel timed (> 0), the parts no
-    larger than what contains them, and the markdown's sum and ratio from those figures."""
+    """``benchmarks.breakdown`` (in ``make bench``'s report) on a small swarm: every kernel timed (> 0), the
+    markdown's sum and ratio from those figures, and the report's ratio from the comparison's one-thread rate."""
     from benchmarks import breakdown
 
     r = breakdown.breakdown(4, 8, reps=1)

@@ -13,8 +13,8 @@ below are the registry. Add a new constant rather than reusing one.
 
 The draws are called functions (``inline="never"``), not inlined into their callers' numba IR: they take only
 integers (no array reference counts to prune), LLVM inlines them once they are linked into a kernel, and numba's IR
-inlining re-ran its untyped pipeline on them at each of the ~180 places they were inlined into in the engine (cold compile of the full
-workload 24.0 / 24.8 → 20.1 / 21.4 s, alternating; the same machine code speed and the same numbers).
+inlining re-ran its untyped pipeline on them at each of the ~180 places they were inlined into in the engine (cold
+compile of the full workload 24.0 / 24.8 → 20.1 / 21.4 s, alternating; the same speed and the same numbers).
 """
 from __future__ import annotations
 
