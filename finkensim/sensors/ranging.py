@@ -141,8 +141,8 @@ class RangingModel:
             arrays = tuple(np.zeros(1) for _ in range(7))
         # read-only arrays throughout, so every mode has the same numba type (one compilation)
         comp = np.stack([np.asarray(a, dtype=np.float64) for a in arrays], axis=1)  # (K, 7), columns COMP_*
-        return RangingParams(np.int64(self.mode), float(self.max_range), float(self.sigma), float(inv_h),
-                             _ro(prob, np.float64), _ro(alias, np.int32), _ro(comp, np.float64))
+        return _readonly_params(RangingParams(np.int64(self.mode), float(self.max_range), float(self.sigma),
+                                              float(inv_h), prob, alias, comp))
 
     def sample(self, x, seed: int = 0, env: int = 0, step: int = 0, copter: int = 0) -> np.ndarray:
         """Readings, m, for true distances ``x`` m (any shape; element j of the flattened array uses reading
