@@ -15,6 +15,7 @@ from finkensim.config import Config
 from finkensim.kernels import threads
 from finkensim.kernels.threads import run_ranges, split_ranges
 from finkensim.swarm import SwarmSim
+from finkensim.swarm.control import PARALLEL_MIN_COPTERS, Controlled
 from finkensim.swarm.kernel import PARALLEL_MIN_COPTER_STEPS
 
 
@@ -116,3 +117,26 @@ def test_rollout_is_the_same_on_one_thread_and_on_several(monkeypatch):
         a, b = getattr(one[1], name), getattr(many[1], name)
         assert first_difference(a, b) is None, f"{name}: {first_difference(a, b)}"
     assert first_difference(one[0].world.pos, many[0].world.pos) is None
+
+
+def test_controlled_step_is_the_same_on_one_thread_and_on_several():
+    """The controlled step (the RL envs' compiled step) keeps ``prange``: its chunks on one thread and on two give the
+    same readings and state bit for bit."""
+    sim = _noisy_sim()
+    B = PARALLEL_MIN_COPTERS // 4 + 3  # enough copters for the split
+    ctl = Controlled(sim)
+    cmd = np.random.default_rng(0).uniform(-0.3, 0.3, (B, 4, 2))
+
+    def three_steps():
+        state = sim.init(n_envs=B, seed=5)
+        out = [ctl.sense(state)]
+        for _ in range(3):
+            state, obs = ctl.step(state, cmd)
+            out.append(obs)
+        return out, state
+
+    (obs1, s1), (obs2, s2) = _with_threads(1, three_steps), _with_threads(2, three_steps)
+    for a, b in zip(obs1, obs2):
+        for x, y in zip(a, b):
+            assert first_difference(x, y) is None
+    assert first_difference(s1.world.pos, s2.world.pos) is None and first_difference(s1.imu_bias, s2.imu_bias) is None
