@@ -33,7 +33,7 @@ from .arena import Arena, HingeParams, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.cellgrid import engine_grid, env_grid, grid_params
-from .kernels.geometry import nearest_body_distance_within_env
+from .kernels.geometry import nearest_body_distance_env, nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
 from .kernels.threads import run_ranges
 
@@ -58,6 +58,28 @@ class WorldArrays(NamedTuple):
     in_collision: np.ndarray
     wall_contacts: np.ndarray
     collisions: np.ndarray
+
+
+@njit(cache=True)
+def walls_from_positions(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
+    """Plate angles theta_out (T, S) rad of walls driven by given (e.g. logged) copter positions pos (T, N, 2) m at
+    times t (T,) s, as in a simulation (sample k holds the plates after responding to the positions of samples
+    1 … k), and each plate's distance to the nearest copter body dist_out (T, S) m. The gap diagnosis replays logged
+    flights with it; the importer's clock estimate too."""
+    T = pos.shape[0]
+    S = seg_a.shape[0]
+    theta = np.zeros(S)
+    omega = np.zeros(S)
+    integ = np.zeros(S)
+    dist = np.empty(S)
+    for k in range(T):
+        nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
+        if k > 0:
+            walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
+        for s in range(S):
+            theta_out[k, s] = theta[s]
+            dist_out[k, s] = dist[s]
+
 
 
 @dataclass(frozen=True)

@@ -21,11 +21,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..arena import Arena, walls_step_env
+from ..arena import Arena
 from ..config import Config
 from ..flightlog import FlightLog
 from ..flightlog.messages import plural
-from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
+from ..world import walls_from_positions
+from ..kernels.geometry import point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
@@ -100,26 +101,6 @@ class Flight:
         return PoseNoise(float(sigma_xy), float(sigma_yaw), int(seed), int(self.index))
 
 
-@njit(cache=True)
-def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
-    """Plate angles theta_out (T, S) rad of walls driven by logged positions pos (T, N, 2), as in a
-    simulation (sample k holds the plates after responding to the positions of samples 1 … k), and each
-    plate's distance to the nearest copter body dist_out (T, S) m."""
-    T = pos.shape[0]
-    S = seg_a.shape[0]
-    theta = np.zeros(S)
-    omega = np.zeros(S)
-    integ = np.zeros(S)
-    dist = np.empty(S)
-    for k in range(T):
-        nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
-        if k > 0:
-            walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
-        for s in range(S):
-            theta_out[k, s] = theta[s]
-            dist_out[k, s] = dist[s]
-
-
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:
     """Prepare each log for replay (geometry from the log, walls from the config, sample stride)."""
     flights = []
@@ -140,7 +121,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         yaw = np.ascontiguousarray(log.pose[:, :, 2], dtype=float)
         theta = np.empty((t.size, arena.n_plates))
         plate_distance = np.empty((t.size, arena.n_plates))
-        replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
+        walls_from_positions(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
         sx = cfg.gap.tracking_sigma_xy if cfg.gap.tracking_sigma_xy >= 0 else float(meta.get("tracking_sigma_xy", 0.0) or 0.0)
         sy = cfg.gap.tracking_sigma_yaw if cfg.gap.tracking_sigma_yaw >= 0 else float(meta.get("tracking_sigma_yaw", 0.0) or 0.0)
         first = 10  # history for finite differences and smoothing windows
