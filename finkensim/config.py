@@ -243,6 +243,11 @@ class SonarConfig(_Section):
     beam: str = _f("ray", choices=("ray", "cone"), doc="ray: one ray; cone: nearest echo of several rays inside the cone")
     beam_rays: int = _f(7, "", 1, 1001, doc="rays across the cone when beam = 'cone'")
     down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
+    range_scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every echo distance (speed of sound relative to the "
+                            "assumed one; the gap effect sound_speed fits it)")
+    bias: float = _f(0.0, "m", -1.0, 1.0, doc="constant offset added to every echo (the gap effect sonar_bias fits it)")
+    crosstalk_hear_probability: float = _f(1.0, "", 0.0, 1.0, doc="geometric cross-talk: probability that a "
+                                           "receiver in cross-talk position hears the emitter (crosstalk_geometric)")
 
 
 @dataclass(frozen=True)
@@ -270,6 +275,9 @@ class ImuConfig(_Section):
     acc_bias_walk: float = _f(0.0005, "m/s^3/sqrt(Hz)", 0.0, 100.0, doc="accelerometer bias random walk density")
     gyro_noise_density: float = _f(0.00009, "rad/s/sqrt(Hz)", 0.0, 100.0, doc="MPU-6000 class: 0.005 deg/s/sqrt(Hz)")
     gyro_bias_walk: float = _f(0.00002, "rad/s^2/sqrt(Hz)", 0.0, 100.0, doc="gyro bias random walk density")
+    acc_bias: tuple[float, ...] = _f((0.0, 0.0), "m/s^2", -20.0, 20.0, length=2,
+                                     doc="constant body-frame accelerometer bias (x, y) (the gap effect imu_bias fits it)")
+    gyro_bias: float = _f(0.0, "rad/s", -10.0, 10.0, doc="constant gyro bias (the gap effect imu_bias fits it)")
 
 
 @dataclass(frozen=True)

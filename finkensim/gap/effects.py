@@ -176,7 +176,8 @@ register(Effect(
     "imu_bias", ("imu",),
     (Param("acc_x", -1.0, 1.0, unit="m/s^2"), Param("acc_y", -1.0, 1.0, unit="m/s^2"),
      Param("gyro", -0.5, 0.5, unit="rad/s")),
-    lambda b, v: b.with_(acc_bias_x=b.acc_bias_x + v["acc_x"], acc_bias_y=b.acc_bias_y + v["acc_y"],
-                         gyro_bias=b.gyro_bias + v["gyro"]),
+    lambda b, v: b.with_(imu=b.imu._replace(acc_bias_x=b.imu.acc_bias_x + v["acc_x"],
+                                            acc_bias_y=b.imu.acc_bias_y + v["acc_y"],
+                                            gyro_bias=b.imu.gyro_bias + v["gyro"])),
     doc="constant accelerometer and gyro biases", initial=lambda b: {"acc_x": 0.0, "acc_y": 0.0, "gyro": 0.0},
     separable=True))

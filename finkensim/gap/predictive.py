@@ -472,8 +472,8 @@ class ImuTable(Table):
         ch = self.channel[rows]
         ws = self.window_s[rows]
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral
-        bias = self.bias_gain[rows, 0] * p.acc_bias_x + self.bias_gain[rows, 1] * p.acc_bias_y
-        bias = np.where(ch == 2, p.gyro_bias * ws, bias)
+        bias = self.bias_gain[rows, 0] * p.imu.acc_bias_x + self.bias_gain[rows, 1] * p.imu.acc_bias_y
+        bias = np.where(ch == 2, p.imu.gyro_bias * ws, bias)
         # white-noise density (unit·√s): the log's own sample period sets each sample's std, not the config's dt
         density = np.where(ch == 2, p.imu.gyro_sigma, p.imu.acc_sigma) * np.sqrt(p.imu.dt)
         acc_walk, gyro_walk = p.walk_density()

@@ -71,9 +71,9 @@ class SonarModel(NamedTuple):
     enabled, down_enabled: whether the caller should produce horizontal / down readings (the
     functions here always compute).
 
-    Fields not set by the config (their defaults change nothing; the gap diagnosis fits them as
-    candidate effects): range_scale, the factor on every echo distance (speed of sound differs from
-    the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
+    Fields whose defaults change nothing and which the gap diagnosis fits as candidate effects (config keys
+    ``sonar.range_scale``, ``sonar.bias``, ``sonar.crosstalk_hear_probability``): range_scale, the factor on every
+    echo distance (speed of sound differs from the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
     converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
     """
@@ -140,6 +140,9 @@ class SonarModel(NamedTuple):
             altitude=float(altitude),
             enabled=bool(sc.enabled),
             down_enabled=bool(sc.down_enabled),
+            range_scale=float(sc.range_scale),
+            bias=float(sc.bias),
+            crosstalk_hear_probability=float(sc.crosstalk_hear_probability),
         ).with_beam(h if sc.beam == "cone" else 0.0, sc.beam_rays)
 
     @property
