@@ -15,115 +15,17 @@ import dataclasses
 import functools
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from .configfields import ConfigError, Section as _Section, describe_range, field_spec as _f
 from .usertext import strip_bom, suggest
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
-
-
-class ConfigError(ValueError):
-    """A configuration value is wrong. The message names the key, the value and what is allowed."""
-
-
-def _f(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
-    """A dataclass field with validation metadata.
-
-    ``lo``/``hi`` bound numbers (inclusive unless ``*_open``); ``choices`` lists allowed strings;
-    ``length`` fixes the length of a tuple field (None = any length).
-    """
-    meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
-    if isinstance(default, (list, tuple)):
-        return field(default_factory=lambda d=tuple(default): d, metadata=meta)
-    return field(default=default, metadata=meta)
-
-
-def _describe_range(meta) -> str:
-    parts = []
-    if meta["choices"] is not None:
-        return "one of " + ", ".join(repr(c) for c in meta["choices"])
-    if meta["lo"] is not None:
-        parts.append((">" if meta["lo_open"] else ">=") + f" {meta['lo']}")
-    if meta["hi"] is not None:
-        parts.append(("<" if meta["hi_open"] else "<=") + f" {meta['hi']}")
-    unit = f" {meta['unit']}" if meta["unit"] else ""
-    return " and ".join(parts) + unit if parts else "any value"
-
-
-def _check_number(key, value, meta, kind):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        article = "an" if kind[0] in "aeiou" else "a"
-        raise ConfigError(f"{key} = {value!r}: expected {article} {kind}, got {type(value).__name__}")
-    if kind == "integer" and not isinstance(value, int):
-        raise ConfigError(f"{key} = {value!r}: expected an integer, got {type(value).__name__}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{key} = {value!r}: expected a finite {kind}")
-    lo, hi = meta["lo"], meta["hi"]
-    bad_lo = lo is not None and (value <= lo if meta["lo_open"] else value < lo)
-    bad_hi = hi is not None and (value >= hi if meta["hi_open"] else value > hi)
-    if bad_lo or bad_hi:
-        raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}")
-    return float(value) if kind == "number" else int(value)
-
-
-def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
-    """Check one value against its declared type and metadata; return it in canonical form."""
-    t = ftype if isinstance(ftype, str) else getattr(ftype, "__name__", str(ftype))
-    if t == "float":
-        return _check_number(key, value, meta, "number")
-    if t == "int":
-        return _check_number(key, value, meta, "integer")
-    if t == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key} = {value!r}: expected true or false, got {type(value).__name__}")
-        return value
-    if t == "str":
-        if not isinstance(value, str):
-            raise ConfigError(f"{key} = {value!r}: expected a string, got {type(value).__name__}")
-        if meta["choices"] is not None and value not in meta["choices"]:
-            raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{suggest(value, meta['choices'])}")
-        return value
-    if t == "tuple[str, ...]":
-        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-            raise ConfigError(f"{key} = {value!r}: expected a list of strings")
-        return tuple(value)
-    if t.startswith("tuple"):
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
-        inner = "tuple[float, float]" in t or "tuple[tuple" in t
-        if not inner:  # a bad element is named before a wrong length
-            checked = tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
-        if meta["length"] is not None and len(value) != meta["length"]:
-            raise ConfigError(f"{key} = {value!r}: expected a list of {meta['length']} numbers, got {len(value)}")
-        if inner:  # a list of 2-D points
-            pts = []
-            for i, p in enumerate(value):
-                if not isinstance(p, (list, tuple)) or len(p) != 2:
-                    raise ConfigError(f"{key}[{i}] = {p!r}: expected a point [x, y] in m")
-                pts.append(tuple(_check_number(f"{key}[{i}]", c, meta, "number") for c in p))
-            return tuple(pts)
-        return checked
-    raise TypeError(f"unsupported config field type {t} for {key}")  # a bug in this module, not user input
-
-
-class _Section:
-    """Mixin: validate every field on construction (also when built from Python)."""
-
-    _section = ""
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            key = f"{self._section}.{f.name}" if self._section else f.name
-            object.__setattr__(self, f.name, _coerce(key, getattr(self, f.name), f.type, f.metadata))
-        self._check()
-
-    def _check(self):
-        """Cross-field checks; override in sections that need them."""
 
 
 @dataclass(frozen=True)
@@ -304,6 +206,18 @@ class GapConfig(_Section):
     effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
 
 
+@dataclass(frozen=True)
+class LogConfig(_Section):
+    """What the flight-log writer records beyond the simulated world (``simulate_flight``, ``finkensim run``)."""
+
+    _section = "log"
+    tracking_sigma_xy: float = _f(0.0, "m", 0.0, 0.1, doc="tracking noise added to the logged x, y (a camera "
+                                  "tracker's; 0 = ground truth; kept inside the arena); written to "
+                                  "meta.tracking_sigma_xy")
+    tracking_sigma_yaw: float = _f(0.0, "rad", 0.0, 3.2, doc="tracking noise added to the logged yaw; written to "
+                                   "meta.tracking_sigma_yaw")
+
+
 SECTIONS: dict[str, type] = {
     "arena": ArenaConfig,
     "walls": WallConfig,
@@ -314,6 +228,7 @@ SECTIONS: dict[str, type] = {
     "ranging": RangingConfig,
     "imu": ImuConfig,
     "gap": GapConfig,
+    "log": LogConfig,
 }
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
@@ -498,5 +413,5 @@ def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:
     rows = []
     for f in dataclasses.fields(cfg_cls):
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        rows.append((f.name, default, f.metadata["unit"], _describe_range(f.metadata), f.metadata["doc"]))
+        rows.append((f.name, default, f.metadata["unit"], describe_range(f.metadata), f.metadata["doc"]))
     return rows

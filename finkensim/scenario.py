@@ -143,9 +143,12 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         flight (arrays with a leading time axis and B = 1, e.g. ``traj.theta`` (T, 1, S) plate
         angles in rad); the :class:`World` (physics) that ran it.
 
-    Besides poses, the log carries ``meta`` = {copter_radius, altitude, source, tracking_sigma_xy
-    = tracking_sigma_yaw = 0 (ground truth), dt, duration, seed, behaviour, config} and the plate
-    angles as the extra array ``wall_theta`` (T, S) rad (plates ordered south, east, north, west).
+    Besides poses, the log carries ``meta`` = {copter_radius, altitude, source, tracking_sigma_xy,
+    tracking_sigma_yaw, dt, duration, seed, behaviour, config} and the plate
+    angles as the extra array ``wall_theta`` (T, S) rad (plates ordered south, east, north, west). The poses are the
+    true ones unless ``log.tracking_sigma_xy`` / ``log.tracking_sigma_yaw`` (m, rad) are set: then they are what a
+    tracker with that noise records (:func:`~finkensim.sensors.tracking.tracked_poses`; meta says the σ), and with
+    ``ideal`` the true poses are the extra ``pose_true`` (T, N, 3).
     """
     cfg = load_scenario(cfg)
     updates: dict[str, Any] = {}
@@ -175,8 +178,8 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         "copter_radius": cfg.copters.radius,
         "altitude": cfg.arena.altitude,
         "source": f"finkensim {__version__}",
-        "tracking_sigma_xy": 0.0,
-        "tracking_sigma_yaw": 0.0,
+        "tracking_sigma_xy": cfg.log.tracking_sigma_xy,
+        "tracking_sigma_yaw": cfg.log.tracking_sigma_yaw,
         "dt": sim.dt,
         "duration": sim.duration,
         "seed": sim.seed,
@@ -189,10 +192,17 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     meta.update(blocks.pop("meta", {}) or {})
     extras.update(blocks.pop("extras", {}) or {})
 
+    pose = np.ascontiguousarray(traj.pose[:, 0])
+    if cfg.log.tracking_sigma_xy > 0.0 or cfg.log.tracking_sigma_yaw > 0.0:
+        if ideal:
+            extras["pose_true"] = pose
+        pose = _tracked(pose, cfg.log, sim.seed, int(state0.world.env_ids[0]))
+        np.clip(pose[..., 0], 0.0, cfg.arena.width, out=pose[..., 0])
+        np.clip(pose[..., 1], 0.0, cfg.arena.length, out=pose[..., 1])
     log = FlightLog(
         t=np.asarray(traj.t, dtype=float),
         arena=np.array([cfg.arena.width, cfg.arena.length]),
-        pose=np.ascontiguousarray(traj.pose[:, 0]),
+        pose=pose,
         copter_ids=np.array([f"copter{i}" for i in range(n)]),
         meta=meta,
         extras=extras,
@@ -200,3 +210,16 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     )
     validate(log)
     return log, traj, world
+
+
+def _tracked(pose, log_cfg, seed: int, env_id: int):
+    """The poses (T, N, 3) a tracker with the configured noise records (:mod:`finkensim.sensors.tracking`), x and y
+    kept inside the arena (the flight-log format's frame), yaw wrapped to [−π, π]."""
+    from .sensors.tracking import tracked_poses
+
+    pos = np.ascontiguousarray(pose[..., :2])
+    yaw = np.ascontiguousarray(pose[..., 2])
+    out_pos, out_yaw = np.empty_like(pos), np.empty_like(yaw)
+    tracked_poses(pos, yaw, float(log_cfg.tracking_sigma_xy), float(log_cfg.tracking_sigma_yaw), int(seed), env_id,
+                  out_pos, out_yaw)
+    return np.concatenate([out_pos, np.arctan2(np.sin(out_yaw), np.cos(out_yaw))[..., None]], axis=-1)

@@ -61,3 +61,29 @@ def test_the_gap_effect_imu_bias_changes_the_simulators_imu_record():
     fitted = REGISTRY["imu_bias"].apply(base, {"acc_x": 0.1, "acc_y": -0.2, "gyro": 0.02})
     assert (fitted.imu.acc_bias_x, fitted.imu.acc_bias_y) == (0.1, -0.2)
     assert fitted.imu.gyro_bias == pytest.approx(0.03, abs=1e-15)
+
+
+def test_the_log_writer_adds_tracking_noise_through_the_tracking_model():
+    """``log.tracking_sigma_*``: the logged poses are the true ones plus σ·z with the normals of the tracking
+    stream (:func:`finkensim.sensors.tracking.tracked_poses`), meta states σ; the sensors are unchanged."""
+    from finkensim.scenario import simulate_flight
+    from finkensim.sensors.tracking import tracked_poses
+
+    plain, _, _ = simulate_flight(fs.load_config(), duration=3.0, seed=2)
+    cfg = fs.load_config().replace({"log.tracking_sigma_xy": 0.01, "log.tracking_sigma_yaw": 0.02})
+    noisy, _, _ = simulate_flight(cfg, duration=3.0, seed=2, ideal=True)
+    np.testing.assert_array_equal(noisy.ultrasonic, plain.ultrasonic)
+    np.testing.assert_array_equal(noisy.extras["pose_true"], plain.pose)
+    assert (noisy.meta["tracking_sigma_xy"], noisy.meta["tracking_sigma_yaw"]) == (0.01, 0.02)
+    assert plain.meta["tracking_sigma_xy"] == 0.0
+    err = noisy.pose - plain.pose
+    err[..., 2] = np.angle(np.exp(1j * err[..., 2]))
+    inside = (plain.pose[..., 0] > 0.05) & (plain.pose[..., 0] < 2.95) & (plain.pose[..., 1] > 0.05) \
+        & (plain.pose[..., 1] < 3.95)
+    pos, yaw = np.ascontiguousarray(plain.pose[..., :2]), np.ascontiguousarray(plain.pose[..., 2])
+    want_pos, want_yaw = np.empty_like(pos), np.empty_like(yaw)
+    tracked_poses(pos, yaw, 0.01, 0.02, 2, 0, want_pos, want_yaw)
+    np.testing.assert_allclose(noisy.pose[..., :2][inside], want_pos[inside], rtol=0, atol=1e-12)
+    # the noise is N(0, σ²): 3 s × 21 Hz × 6 copters = 366 samples, the sample sd within 15 % (≈ 4 standard errors)
+    assert np.std(err[..., 0][inside]) == pytest.approx(0.01, rel=0.15)
+    assert np.std(err[..., 2]) == pytest.approx(0.02, rel=0.15)

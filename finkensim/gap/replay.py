@@ -33,7 +33,7 @@ from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_
                                      sonar_poses_env, sonar_spread, store_ideal)
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
-from .pose_noise import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
+from ..sensors.tracking import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
 
 
 class GapInputError(ValueError):
