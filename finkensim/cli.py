@@ -256,7 +256,8 @@ def _add_gap(sub) -> None:
                     "DIR/report.json (spec/gap-report.md), DIR/report.md and figures.")
     p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (spec/flightlog.md)")
     p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
-    p.add_argument("--out", default="out/gap", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--out", default="out/gap", metavar="DIR",
+                   help="output directory: report.json, report.md, figures, calibrated.toml (default: %(default)s)")
     p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
                    help="held-out flights by file name (default: every other flight; one flight: its second half)")
     p.add_argument("--effects", nargs="+", default=None, metavar="EFFECT", help="only try these catalogued effects")
@@ -310,6 +311,9 @@ def cmd_gap(args) -> int:
         verdict = f"{v['effect']} explains it (held-out shrink {100 * v['shrink_heldout']:.0f} %)"
     print(f"{prog}: gap {report['gap_before']:.4f}: {verdict}")
     print(f"{prog}: wrote {paths['json']} and {paths['md']} in {time.perf_counter() - t0:.1f} s")
+    if "calibrated" in paths:
+        print(f"{prog}: wrote {paths['calibrated']}: the diagnosed config with the selected effects at their fitted "
+              f"parameters (finkensim run/sweep/tune read it as it is)")
     return EXIT_OK
 
 

@@ -135,7 +135,9 @@ class SonarConfig(_Section):
                     doc="error model: Rayleigh term, the report's rule, Gaussian(sigma), or ideal")
     sigma: float = _f(0.05, "m", 0.0, 10.0, doc="Rayleigh scale (rayleigh, seed) or standard deviation (gaussian)")
     rayleigh_sign: float = _f(-1.0, "", -1.0, 1.0, doc="+1: reading = true + (R - s); -1: true - (R - s) (readings run short)")
-    crosstalk: str = _f("geometric", choices=("geometric", "constant", "off"))
+    crosstalk: str = _f("geometric", choices=("geometric", "constant", "geometric+constant", "off"),
+                        doc="cross-talk model: another copter's ping heard by geometry, a constant fraction of "
+                            "halved readings (the report's rule), both, or none")
     crosstalk_probability: float = _f(0.68, "", 0.0, 1.0, doc="constant cross-talk: probability per reading (report: 0.68)")
     cone_half_angle_deg: float = _f(45.0, "deg", 0.0, 90.0, lo_open=True, doc="sonar cone (original scene: 45 deg)")
     schedule: str = _f("round_robin", choices=("simultaneous", "round_robin", "random_offset"),
@@ -144,6 +146,8 @@ class SonarConfig(_Section):
     crosstalk_jitter: float = _f(0.02, "m", 0.0, 10.0, doc="std of the jitter added to a cross-talk reading")
     beam: str = _f("ray", choices=("ray", "cone"), doc="ray: one ray; cone: nearest echo of several rays inside the cone")
     beam_rays: int = _f(7, "", 1, 1001, doc="rays across the cone when beam = 'cone'")
+    beam_half_angle_deg: float = _f(-1.0, "deg", -1.0, 90.0, doc="half-width of the rays of beam = 'cone'; -1 = "
+                                    "cone_half_angle_deg (the beam_width effect fits it apart from the cross-talk cone)")
     down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
     range_scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every echo distance (speed of sound relative to the "
                             "assumed one; the gap effect sound_speed fits it)")

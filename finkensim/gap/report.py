@@ -175,11 +175,17 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
     if wf:
         fig, ax = plt.subplots(figsize=(6, 3.5))
         vals = [w["gap_heldout"] for w in wf]
-        ax.bar(range(len(wf)), vals, color=["0.5"] + ["C2"] * (len(wf) - 1))
-        for i, w in enumerate(wf):
-            if w.get("ci") and w["ci"][0] is not None and np.isfinite(w["ci"][0]):
-                ax.errorbar(i, w["gap_heldout"], yerr=[[w["gap_heldout"] - w["ci"][0]], [w["ci"][1] - w["gap_heldout"]]],
-                            color="k", lw=1)
+        ax.bar(range(len(wf)), vals, color=["0.5"] + ["C2"] * (len(wf) - 1), label="held-out gap left")
+        # the interval belongs to the calibration gap (the significance test's quantity), not to the bar: a bar
+        # outside its own "interval" made matplotlib refuse negative error lengths
+        calib = [(i, w) for i, w in enumerate(wf) if w.get("ci") and w["ci"][0] is not None
+                 and np.isfinite(w["ci"][0]) and w.get("calibration_gap") is not None]
+        if calib:
+            ax.errorbar([i for i, _ in calib], [w["calibration_gap"] for _, w in calib],
+                        yerr=[[max(0.0, w["calibration_gap"] - w["ci"][0]) for _, w in calib],
+                              [max(0.0, w["ci"][1] - w["calibration_gap"]) for _, w in calib]],
+                        fmt="o", color="k", ms=3, lw=1, label="calibration gap, 95 % CI")
+            ax.legend(fontsize=7)
         ax.set_xticks(range(len(wf)))
         ax.set_xticklabels([w["step"] for w in wf], rotation=20, ha="right", fontsize=9)
         ax.axhline(0, color="k", lw=0.8)

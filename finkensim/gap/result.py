@@ -53,7 +53,9 @@ class GapDetails:
     reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
     score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None; targeted: when the omnibus
     test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.selection.run_diagnosis`),
-    {effect, sensors, improvement, ci, p, threshold, passed}, else None.
+    {effect, sensors, improvement, ci, p, threshold, passed}, else None; added_params: effect → its fitted
+    parameters in the final selection (after any joint refit); config: the diagnosed :class:`~finkensim.config.Config`
+    (what :meth:`GapReport.calibrated_config` starts from).
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -81,6 +83,8 @@ class GapDetails:
     censoring: dict = field(default_factory=dict)
     correction: object = None
     targeted: dict | None = None
+    added_params: dict = field(default_factory=dict)
+    config: object = None
 
 
 @dataclass
@@ -118,8 +122,21 @@ class GapReport:
         """:meth:`to_spec` as JSON text (strict: no NaN)."""
         return json.dumps(self.to_spec(), indent=1, allow_nan=False) + "\n"
 
+    def calibrated_config(self):
+        """The diagnosed config plus every selected effect the simulator can fly, at its fitted parameters (a
+        :class:`~finkensim.config.Config`; :func:`finkensim.gap.calibrate.calibration` says which effects are not
+        flown yet)."""
+        from .calibrate import calibrated_config
+
+        return calibrated_config(self)
+
     def write(self, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
-        """Write report.json, report.md and the figures into directory ``out``; returns the written paths."""
+        """Write report.json, report.md, the figures and, when the diagnosed config is known, calibrated.toml
+        (:mod:`finkensim.gap.calibrate`) into directory ``out``; returns the written paths."""
+        from .calibrate import write_calibrated
         from .report import write_report
 
-        return write_report(self, out, max_locations_md)
+        paths = write_report(self, out, max_locations_md)
+        if self.details.config is not None:
+            paths["calibrated"] = write_calibrated(self, Path(out) / "calibrated.toml")
+        return paths

@@ -258,7 +258,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         catch_all=[r.name for r in first if fx.REGISTRY[r.name].catch_all], tie_tolerance=cfg.tie_tolerance,
         unexplained_shrink=cfg.unexplained_shrink, remaining=remaining, calibration_gap=calibration_gap, calibration_ci=list(gap_ci),
         best_score=meter.s_min,
-        censoring={s: c.to_dict() for s, c in diag.censoring.items()}, correction=correction, targeted=targeted)
+        censoring={s: c.to_dict() for s, c in diag.censoring.items()}, correction=correction, targeted=targeted,
+        added_params={r.name: _clean(r.values) for r in added}, config=diag.cfg)
     locations = [{**{k: v for k, v in loc.items() if not k.startswith("_")},
                   "significant": bool(loc["_significant"] and significant)} for loc in locs]
     return GapReport(flights={"train": diag.train_names, "heldout": diag.heldout_names}, score="crps_gap_normalised",

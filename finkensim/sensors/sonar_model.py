@@ -35,7 +35,8 @@ ERROR_CODES = {"none": ERROR_NONE, "gaussian": ERROR_GAUSSIAN, "rayleigh": ERROR
 CROSSTALK_OFF = 0
 CROSSTALK_CONSTANT = 1
 CROSSTALK_GEOMETRIC = 2
-CROSSTALK_CODES = {"off": CROSSTALK_OFF, "constant": CROSSTALK_CONSTANT, "geometric": CROSSTALK_GEOMETRIC}
+CROSSTALK_CODES = {"off": CROSSTALK_OFF, "constant": CROSSTALK_CONSTANT, "geometric": CROSSTALK_GEOMETRIC,
+                   "geometric+constant": CROSSTALK_GEOMETRIC | CROSSTALK_CONSTANT}
 
 SCHEDULE_SIMULTANEOUS = 0
 SCHEDULE_ROUND_ROBIN = 1
@@ -143,7 +144,8 @@ class SonarModel(NamedTuple):
             range_scale=float(sc.range_scale),
             bias=float(sc.bias),
             crosstalk_hear_probability=float(sc.crosstalk_hear_probability),
-        ).with_beam(h if sc.beam == "cone" else 0.0, sc.beam_rays)
+        ).with_beam((h if sc.beam_half_angle_deg < 0.0 else math.radians(sc.beam_half_angle_deg))
+                    if sc.beam == "cone" else 0.0, sc.beam_rays)
 
     @property
     def n_rays(self) -> int:
