@@ -1,0 +1,169 @@
+"""Sphinx configuration of the finkensim documentation (``make docs`` → ``docs/_build/html``).
+
+The pages are MyST Markdown; the notebooks (``docs/notebooks`` links to ``../notebooks``) are rendered with the
+outputs they were committed with (``nb_execution_mode = "off"``); the API reference is generated from the
+docstrings (autodoc + napoleon, numpy style). ``make docs`` turns every warning into an error, so a broken
+cross-reference in a page or a docstring fails the build.
+"""
+from __future__ import annotations
+
+import os
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import finkensim  # noqa: E402
+
+project = "finkensim"
+author = "the finkensim authors"
+copyright = "the finkensim authors"  # noqa: A001 (Sphinx's name)
+version = release = finkensim.__version__
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.viewcode",
+    "myst_nb",  # includes myst_parser
+]
+
+# --- sources -----------------------------------------------------------------------------------------------------
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}  # .rst first: autosummary writes its stubs as reST
+root_doc = "index"
+exclude_patterns = [
+    "_build", "Thumbs.db", ".DS_Store",
+    "notebooks/.ipynb_checkpoints",
+    "bench/*.md", "validation/README.md",  # raw run reports, linked from the pages that quote them
+]
+# A page in no toctree is still built (and can be linked to) but is in no navigation: add new pages to a toctree in
+# index.md (see contributing.md). The warning is not an error so that a page added on another branch builds at once.
+suppress_warnings = ["toc.not_included"]
+
+# --- MyST and notebooks ------------------------------------------------------------------------------------------
+myst_enable_extensions = ["colon_fence", "dollarmath", "deflist"]
+myst_heading_anchors = 3
+nb_execution_mode = "off"  # notebooks are rendered with their committed outputs (make test executes them)
+nb_merge_streams = True
+
+# --- API reference -----------------------------------------------------------------------------------------------
+autosummary_generate = True
+autosummary_ignore_module_all = True  # document what each module defines, each object once
+autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": True, "ignore-module-all": True}
+autodoc_member_order = "bysource"
+autodoc_typehints = "description"
+autodoc_typehints_description_target = "documented_params"
+autodoc_mock_imports: list[str] = []
+napoleon_google_docstring = False
+napoleon_numpy_docstring = True
+napoleon_use_rtype = False
+
+# Broken cross-references are errors; names of other libraries (no intersphinx: the build is offline) are not ours
+# to resolve.
+nitpicky = True
+_EXTERNAL = r"(numpy|np|numba|scipy|pandas|pd|pyarrow|matplotlib|plt|mpl|dask|distributed|gymnasium|gym|pettingzoo|" \
+            r"optuna|cma|sklearn|rosbags|mcap|PIL|tqdm|tomllib|tomli|pathlib|os|io|typing|collections|" \
+            r"concurrent|multiprocessing|dataclasses|enum|types|abc|json|re|datetime|argparse|subprocess)"
+nitpick_ignore_regex = [
+    (r"py:.*", _EXTERNAL + r"(\..*)?"),
+    (r"py:class", r"(ndarray|ArrayLike|NDArray|DataFrame|Series|Figure|Axes|Path|PathLike|Callable|Iterable|"
+                  r"Iterator|Sequence|Mapping|Any|Literal|Optional|Union|NamedTuple|T|self|optional|"
+                  r"array_like|array|array-like|float|int|bool|str|bytes|dict|list|tuple|object|None)"),
+]
+
+# --- HTML --------------------------------------------------------------------------------------------------------
+html_theme = "furo"
+html_title = "finkensim"
+html_static_path: list[str] = []
+
+
+# --- references written as the code reads them -------------------------------------------------------------------
+def _import_target(dotted: str):
+    """The object a dotted name points to (module, then attributes), or None."""
+    import importlib
+
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except Exception:  # noqa: BLE001 (not a module: try a shorter prefix)
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return None
+        return obj
+    return None
+
+
+def _canonical(dotted: str) -> str | None:
+    """Where the object a dotted name points to is documented: its defining module and qualified name."""
+    obj = _import_target(dotted)
+    if obj is None:
+        return None
+    if isinstance(obj, type(sys)):
+        return obj.__name__
+    module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+    if isinstance(module, str) and isinstance(qualname, str) and "<" not in qualname:
+        return f"{module}.{qualname}"
+    return dotted  # data: documented under the name it was reached by
+
+
+def _resolve_reexport(app, env, node, contnode):
+    """Resolve ``:class:`GapReport```-style references the way Python resolves the name.
+
+    A docstring names an object as its module sees it: relative to the module (``csvtables.read_csv`` in
+    ``finkensim.importing``) or by a package that re-exports it (``finkensim.gap.GapReport``). Sphinx looks only for
+    the exact documented name; this tries the name relative to the referring module and its parents, then the place
+    the object is defined. A name that resolves nowhere is left to Sphinx (and fails the build).
+    """
+    if node.get("refdomain") != "py":
+        return None
+    target = node["reftarget"].lstrip(".~")
+    module = node.get("py:module") or ""
+    classname = node.get("py:class") or ""
+    prefixes = []
+    if module:
+        parts = module.split(".")
+        if classname:
+            prefixes.append(f"{module}.{classname}")
+        prefixes += [".".join(parts[:i]) for i in range(len(parts), 0, -1)]
+    prefixes.append("")
+    domain = env.get_domain("py")
+    for prefix in prefixes:
+        dotted = f"{prefix}.{target}" if prefix else target
+        canonical = _canonical(dotted)
+        for name in dict.fromkeys(x for x in (dotted, canonical) if x):
+            found = domain.resolve_any_xref(env, node["refdoc"], app.builder, name, node, contnode)
+            found = [r for r in found if r[0].startswith("py:")]
+            if found:
+                return found[0][1]
+    return None
+
+
+# --- the docstrings' own conventions ------------------------------------------------------------------------------
+# |x| is an absolute value or a norm in this project's docstrings, never a reST substitution: escape the bars.
+_BARS = re.compile(r"(?<![\\|`\w])\|(?=[^\s|`])([^|`\n]*?[^\s\\|`])\|(?![\w|`])")
+
+
+def _escape_bars(app, what, name, obj, options, lines):
+    """Escape ``|x|`` (absolute values) so that reST does not read them as substitutions."""
+    lines[:] = [_BARS.sub(r"\\|\1\\|", line) for line in lines]
+
+
+def _plain_attribute_docstring(self):
+    """An attribute's docstring is prose here: napoleon would read ``Text: more`` as ``type: description``."""
+    return self._consume_to_end()
+
+
+def setup(app):
+    from sphinx.ext.napoleon.docstring import GoogleDocstring
+
+    GoogleDocstring._parse_attribute_docstring = _plain_attribute_docstring
+    app.connect("missing-reference", _resolve_reexport)
+    app.connect("autodoc-process-docstring", _escape_bars, priority=400)  # before napoleon (500)
