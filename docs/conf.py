@@ -38,7 +38,7 @@ root_doc = "index"
 exclude_patterns = [
     "_build", "Thumbs.db", ".DS_Store",
     "notebooks/.ipynb_checkpoints",
-    "bench/*.md", "validation/README.md",  # raw run reports, linked from the pages that quote them
+    "validation/*/**",  # raw rows of the validation sweeps (validation/README.md describes them)
 ]
 # A page in no toctree is still built (and can be linked to) but is in no navigation: add new pages to a toctree in
 # index.md (see contributing.md). The warning is not an error so that a page added on another branch builds at once.
@@ -55,20 +55,23 @@ autosummary_generate = True
 autosummary_ignore_module_all = True  # document what each module defines, each object once
 autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": True, "ignore-module-all": True}
 autodoc_member_order = "bysource"
+autodoc_inherit_docstrings = False  # an override without a docstring does not borrow its (foreign) base class's
 autodoc_typehints = "description"
 autodoc_typehints_description_target = "documented_params"
 autodoc_mock_imports: list[str] = []
-napoleon_google_docstring = False
+napoleon_google_docstring = True  # a few older docstrings use "Args:"; new ones are numpy style
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False
+napoleon_use_ivar = True  # "Attributes:" as fields: the members themselves are documented once, by autodoc
 
 # Broken cross-references are errors; names of other libraries (no intersphinx: the build is offline) are not ours
 # to resolve.
 nitpicky = True
 _EXTERNAL = r"(numpy|np|numba|scipy|pandas|pd|pyarrow|matplotlib|plt|mpl|dask|distributed|gymnasium|gym|pettingzoo|" \
             r"optuna|cma|sklearn|rosbags|mcap|PIL|tqdm|tomllib|tomli|pathlib|os|io|typing|collections|" \
-            r"concurrent|multiprocessing|dataclasses|enum|types|abc|json|re|datetime|argparse|subprocess)"
+            r"concurrent|multiprocessing|dataclasses|enum|types|abc|json|re|datetime|argparse|subprocess|gc)"
 nitpick_ignore_regex = [
+    (r"py:.*", r"(.*\.)?_\w+"),  # private helpers that a docstring names are not part of the reference
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
     (r"py:class", r"(ndarray|ArrayLike|NDArray|DataFrame|Series|Figure|Axes|Path|PathLike|Callable|Iterable|"
                   r"Iterator|Sequence|Mapping|Any|Literal|Optional|Union|NamedTuple|T|self|optional|"
@@ -148,12 +151,31 @@ def _resolve_reexport(app, env, node, contnode):
 
 # --- the docstrings' own conventions ------------------------------------------------------------------------------
 # |x| is an absolute value or a norm in this project's docstrings, never a reST substitution: escape the bars.
-_BARS = re.compile(r"(?<![\\|`\w])\|(?=[^\s|`])([^|`\n]*?[^\s\\|`])\|(?![\w|`])")
+_BARS = re.compile(r"(?<![\\|`])\|(?=[^\s|`])([^|`\n]*?[^\s\\|`])\|(?![|`])")
+
+
+# (*leading, 2) is a shape with a starred name, not the start of emphasis.
+_STARRED = re.compile(r"(?<=[(\[, ])\*(?=\w+[,)\]])")
+
+
+def _escape_text(text: str) -> str:
+    """Escape ``|x|`` and ``(*leading, 2)`` in running text, leaving inline literals (double backquotes) alone."""
+    parts = re.split(r"(``.*?``)", text)
+    return "".join(part if part.startswith("``") else _STARRED.sub(r"\\*", _BARS.sub(r"\\|\1\\|", part))
+                   for part in parts)
 
 
 def _escape_bars(app, what, name, obj, options, lines):
-    """Escape ``|x|`` (absolute values) so that reST does not read them as substitutions."""
-    lines[:] = [_BARS.sub(r"\\|\1\\|", line) for line in lines]
+    """Escape ``|x|`` (absolute values) and ``(*leading, 2)`` so that reST reads them as text (not in literal blocks)."""
+    literal_indent = None
+    for i, line in enumerate(lines):
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None and line.strip() and indent <= literal_indent:
+            literal_indent = None
+        if literal_indent is None:
+            lines[i] = _escape_text(line)
+            if line.rstrip().endswith("::"):
+                literal_indent = indent
 
 
 def _plain_attribute_docstring(self):
@@ -161,9 +183,30 @@ def _plain_attribute_docstring(self):
     return self._consume_to_end()
 
 
+def _prefer_modules(import_by_name):
+    """``finkensim.gap.diagnose`` is a module and, re-exported by the package, a function: autosummary must document
+    the module there (the function is documented where it is defined)."""
+    import importlib
+    import importlib.util
+
+    def wrapped(name, *args, **kwargs):
+        try:
+            is_module = importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError, AttributeError):
+            is_module = False
+        if is_module:
+            module = importlib.import_module(name)
+            return module, None, name
+        return import_by_name(name, *args, **kwargs)
+
+    return wrapped
+
+
 def setup(app):
+    import sphinx.ext.autosummary as autosummary
     from sphinx.ext.napoleon.docstring import GoogleDocstring
 
+    autosummary._import_by_name = _prefer_modules(autosummary._import_by_name)
     GoogleDocstring._parse_attribute_docstring = _plain_attribute_docstring
     app.connect("missing-reference", _resolve_reexport)
     app.connect("autodoc-process-docstring", _escape_bars, priority=400)  # before napoleon (500)

@@ -28,7 +28,10 @@ else:  # pragma: no cover
 
 
 class ConfigError(ValueError):
-    """A configuration value is wrong. The message names the key, the value and what is allowed."""
+    """A configuration value is wrong. The message names the key, the value and what is allowed.
+
+    A :class:`ValueError`; the command line reports it in one line (exit code 2), without a traceback.
+    """
 
 
 def _f(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
@@ -182,6 +185,27 @@ class CopterConfig(_Section):
 
 @dataclass(frozen=True)
 class SimulationConfig(_Section):
+    """Time stepping, run length, seed and batch size (TOML table ``[simulation]``).
+
+    Every field is validated on construction (a wrong value is a :class:`ConfigError` naming the key);
+    ``describe(SimulationConfig)`` lists them with units, ranges and defaults.
+
+    Parameters
+    ----------
+    dt : float
+        World step, s (> 0, ≤ 1; default 0.05).
+    duration : float
+        Length of a ``finkensim run`` flight, s (default 60).
+    seed : int
+        Random seed (≥ 0; default 0). Every random number is a function of (seed, environment, step, copter,
+        sensor).
+    n_envs : int
+        Number of parallel environments B, the leading axis of every batched array (default 1).
+    grid_min_copters : int
+        Copters per environment from which copter-copter queries use a cell grid instead of the brute force
+        (identical results; 0 = always; default 64).
+    """
+
     _section = "simulation"
     dt: float = _f(0.05, "s", 0.0, 1.0, lo_open=True, doc="world step")
     duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
@@ -307,6 +331,7 @@ SECTIONS: dict[str, type] = {
     "imu": ImuConfig,
     "gap": GapConfig,
 }
+"""Config sections by TOML table name: ``[arena]`` → :class:`ArenaConfig`, and so on."""
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
@@ -332,6 +357,20 @@ class Config:
     Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`,
     :func:`config_from_dict`, or ``Config()`` for all defaults; derive variants with
     :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+
+    Parameters
+    ----------
+    profile : str
+        ``"default"`` (finkensim's models) or ``"seed"`` (every model as the V-REP project report describes it);
+        sets the defaults of every section not given.
+    **sections
+        Section objects by TOML table name (``arena=ArenaConfig(width=5.0)``, …); the others take the profile's
+        defaults.
+
+    Raises
+    ------
+    ConfigError
+        An unknown profile or section name, or more copters than the arena holds.
     """
 
     __slots__ = ("profile", "_sections")
@@ -374,7 +413,13 @@ class Config:
         return f"Config(profile={self.profile!r}, {inner})"
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain nested dict (TOML-shaped) of every value, including defaults."""
+        """Plain nested dict (TOML-shaped) of every value, including defaults.
+
+        Returns
+        -------
+        dict
+            ``{"profile": str, section name: {key: value}}``; tuples become lists.
+        """
         out: dict[str, Any] = {"profile": self.profile}
         for name, sec in self._sections.items():
             out[name] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sec).items()}
@@ -385,6 +430,21 @@ class Config:
 
         ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults
         take the new profile's; values set away from them are kept.
+
+        Parameters
+        ----------
+        updates : Mapping[str, Any]
+            Dotted keys ``"section.key"`` (or ``"profile"``) to new values, in the units of the config.
+
+        Returns
+        -------
+        Config
+            A new, validated config; this one is unchanged.
+
+        Raises
+        ------
+        ConfigError
+            An unknown key (with a did-you-mean suggestion) or a value of the wrong type or range.
         """
         profile = updates.get("profile", self.profile)
         base = Config(profile).to_dict() if profile != self.profile else None
@@ -459,7 +519,25 @@ def config_from_dict(data: Mapping[str, Any], _explicit: bool = False) -> Config
 
 
 def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
-    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults)."""
+    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults).
+
+    Parameters
+    ----------
+    source : str, Path, Mapping or None
+        A path to a TOML file, TOML text, a nested dict shaped like the TOML (``{"walls": {"bending":
+        False}}``), or None for every default.
+
+    Returns
+    -------
+    Config
+        The validated configuration.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, bad TOML, an unknown key or a value of the wrong type or range; the message names
+        the key, the value and what is allowed.
+    """
     if source is None:
         return Config()
     if isinstance(source, Mapping):
