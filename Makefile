@@ -41,7 +41,7 @@ docs: $(STAMP)
 # `make test`): the landing page and one API page, into docs/img/.
 screenshots: docs
 	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
-	$(BIN)/python -m docs.screenshots chromium docs/_build/html docs/img
+	$(BIN)/python docs/screenshots.py --browser chromium --site docs/_build/html --out docs/img
 
 # re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
 notebooks: $(STAMP)

@@ -62,7 +62,8 @@ autodoc_mock_imports: list[str] = []
 napoleon_google_docstring = True  # a few older docstrings use "Args:"; new ones are numpy style
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False
-napoleon_use_ivar = True  # "Attributes:" as fields: the members themselves are documented once, by autodoc
+napoleon_use_param = False  # types are prose here ("ndarray, shape (B, N, 2)"), not names to cross-reference
+napoleon_custom_sections = [("Attributes", "params_style")]  # a field list: autodoc documents the members once
 
 # Broken cross-references are errors; names of other libraries (no intersphinx: the build is offline) are not ours
 # to resolve.
@@ -165,8 +166,50 @@ def _escape_text(text: str) -> str:
                    for part in parts)
 
 
+def _indent(line: str) -> int:
+    return len(line) - len(line.lstrip())
+
+
+def _literal_blocks(lines: list[str]) -> list[str]:
+    """Mark indented examples as literal blocks.
+
+    This project's docstrings show code as a block indented under a paragraph, after a blank line (plain-text
+    style); reST would make it a block quote. A ``::`` paragraph before such a block makes it literal. A block that
+    continues a list item (indented to the item's text) is left alone.
+    """
+    out: list[str] = []
+    para_indent, para_first, in_literal = None, "", None
+    for i, line in enumerate(lines):
+        if not line.strip():
+            out.append(line)
+            continue
+        indent = _indent(line)
+        if in_literal is not None and indent > in_literal:
+            out.append(line)
+            continue
+        in_literal = None
+        previous = out[-1] if out else ""
+        if para_indent is not None and not previous.strip() and indent > para_indent:
+            prev_text = next((x for x in reversed(out) if x.strip()), "")
+            item = re.match(r"\s*(?:[-*+]|\d+\.|\(\w\))\s+", para_first)
+            continues_item = item and indent == item.end()
+            if prev_text.rstrip().endswith("::") or continues_item:
+                in_literal = para_indent if prev_text.rstrip().endswith("::") else None
+            else:
+                out[-1:] = ["", " " * para_indent + "::", ""]
+                in_literal = para_indent
+            out.append(line)
+            continue
+        if not previous.strip():
+            para_first = line
+        para_indent = indent
+        out.append(line)
+    return out
+
+
 def _escape_bars(app, what, name, obj, options, lines):
     """Escape ``|x|`` (absolute values) and ``(*leading, 2)`` so that reST reads them as text (not in literal blocks)."""
+    lines[:] = _literal_blocks(lines)
     literal_indent = None
     for i, line in enumerate(lines):
         indent = len(line) - len(line.lstrip())
@@ -176,6 +219,19 @@ def _escape_bars(app, what, name, obj, options, lines):
             lines[i] = _escape_text(line)
             if line.rstrip().endswith("::"):
                 literal_indent = indent
+
+
+def _config_keys(app, what, name, obj, options, lines):
+    """A config section's keys, from their field metadata (``finkensim.config.describe``), as its Parameters."""
+    from finkensim.config import SECTIONS, describe
+
+    if what != "class" or obj not in SECTIONS.values():
+        return
+    table = next(k for k, v in SECTIONS.items() if v is obj)
+    lines += ["", f"TOML table ``[{table}]``; every key is validated on construction.", "", "Parameters", "----------"]
+    for key, default, unit, allowed, doc in describe(obj):
+        lines.append(f"{key} : {unit or 'no unit'}; default ``{default!r}``" + (f"; {allowed}" if allowed else ""))
+        lines.append(f"    {_escape_text(doc)}" if doc else "    (see the user guide)")
 
 
 def _plain_attribute_docstring(self):
@@ -210,3 +266,4 @@ def setup(app):
     GoogleDocstring._parse_attribute_docstring = _plain_attribute_docstring
     app.connect("missing-reference", _resolve_reexport)
     app.connect("autodoc-process-docstring", _escape_bars, priority=400)  # before napoleon (500)
+    app.connect("autodoc-process-docstring", _config_keys, priority=450)

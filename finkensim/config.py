@@ -1,13 +1,11 @@
 """Configuration: frozen dataclasses with defaults for everything, loaded from TOML.
 
-Every field carries metadata (unit, allowed range or choices, one line of doc). The same
-validator runs when a dataclass is built in Python and when a TOML file is loaded, so a
-wrong key, type or range is always a :class:`ConfigError` naming the key, the value and
-what is allowed. Unknown keys are errors with a "did you mean" suggestion.
-
-Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted
-by the models). ``profile = "seed"`` switches every model to the behaviour described in the
-original V-REP report (see ``DESIGN.md``); keys given explicitly still override the profile.
+Every field carries metadata (unit, allowed range or choices, one line of doc). The same validator runs when a
+dataclass is built in Python and when a TOML file is loaded, so a wrong key, type or range is always a
+:class:`ConfigError` naming the key, the value and what is allowed. Unknown keys are errors with a "did you mean"
+suggestion. Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted by the
+models). ``profile = "seed"`` switches every model to the behaviour described in the original V-REP report (see
+``docs/user-guide/``); keys given explicitly still override the profile.
 """
 from __future__ import annotations
 
@@ -28,18 +26,12 @@ else:  # pragma: no cover
 
 
 class ConfigError(ValueError):
-    """A configuration value is wrong. The message names the key, the value and what is allowed.
-
-    A :class:`ValueError`; the command line reports it in one line (exit code 2), without a traceback.
-    """
+    """A configuration value is wrong. The message names the key, the value and what is allowed."""
 
 
 def _f(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
-    """A dataclass field with validation metadata.
-
-    ``lo``/``hi`` bound numbers (inclusive unless ``*_open``); ``choices`` lists allowed strings;
-    ``length`` fixes the length of a tuple field (None = any length).
-    """
+    """A dataclass field with validation metadata: ``lo``/``hi`` bound numbers (inclusive unless ``*_open``);
+    ``choices`` lists allowed strings; ``length`` fixes the length of a tuple field (None = any length)."""
     meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
     if isinstance(default, (list, tuple)):
         return field(default_factory=lambda d=tuple(default): d, metadata=meta)
@@ -185,27 +177,7 @@ class CopterConfig(_Section):
 
 @dataclass(frozen=True)
 class SimulationConfig(_Section):
-    """Time stepping, run length, seed and batch size (TOML table ``[simulation]``).
-
-    Every field is validated on construction (a wrong value is a :class:`ConfigError` naming the key);
-    ``describe(SimulationConfig)`` lists them with units, ranges and defaults.
-
-    Parameters
-    ----------
-    dt : float
-        World step, s (> 0, ≤ 1; default 0.05).
-    duration : float
-        Length of a ``finkensim run`` flight, s (default 60).
-    seed : int
-        Random seed (≥ 0; default 0). Every random number is a function of (seed, environment, step, copter,
-        sensor).
-    n_envs : int
-        Number of parallel environments B, the leading axis of every batched array (default 1).
-    grid_min_copters : int
-        Copters per environment from which copter-copter queries use a cell grid instead of the brute force
-        (identical results; 0 = always; default 64).
-    """
-
+    """Time stepping, run length, seed and batch size: world step ``dt`` s, ``duration`` s, ``seed``, ``n_envs`` (B)."""
     _section = "simulation"
     dt: float = _f(0.05, "s", 0.0, 1.0, lo_open=True, doc="world step")
     duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
@@ -331,7 +303,6 @@ SECTIONS: dict[str, type] = {
     "imu": ImuConfig,
     "gap": GapConfig,
 }
-"""Config sections by TOML table name: ``[arena]`` → :class:`ArenaConfig`, and so on."""
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
@@ -354,23 +325,12 @@ def register_section(name: str, cls: type, seed_overrides: Mapping[str, Any] | N
 class Config:
     """The whole configuration: one frozen section object per name in :data:`SECTIONS`.
 
-    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`,
-    :func:`config_from_dict`, or ``Config()`` for all defaults; derive variants with
-    :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`, :func:`config_from_dict`,
+    or ``Config()`` for all defaults; derive variants with :meth:`replace` (``cfg.replace({"walls.bending": False})``).
 
     Parameters
     ----------
-    profile : str
-        ``"default"`` (finkensim's models) or ``"seed"`` (every model as the V-REP project report describes it);
-        sets the defaults of every section not given.
-    **sections
-        Section objects by TOML table name (``arena=ArenaConfig(width=5.0)``, …); the others take the profile's
-        defaults.
-
-    Raises
-    ------
-    ConfigError
-        An unknown profile or section name, or more copters than the arena holds.
+    profile, **sections : ``"default"`` or ``"seed"`` (the V-REP report's models); sections by TOML table name
     """
 
     __slots__ = ("profile", "_sections")
@@ -413,13 +373,7 @@ class Config:
         return f"Config(profile={self.profile!r}, {inner})"
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain nested dict (TOML-shaped) of every value, including defaults.
-
-        Returns
-        -------
-        dict
-            ``{"profile": str, section name: {key: value}}``; tuples become lists.
-        """
+        """Plain nested dict (TOML-shaped) of every value, including defaults."""
         out: dict[str, Any] = {"profile": self.profile}
         for name, sec in self._sections.items():
             out[name] = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(sec).items()}
@@ -428,23 +382,13 @@ class Config:
     def replace(self, updates: Mapping[str, Any]) -> "Config":
         """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``.
 
-        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults
-        take the new profile's; values set away from them are kept.
+        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults take the new
+        profile's; values set away from them are kept.
 
         Parameters
         ----------
         updates : Mapping[str, Any]
-            Dotted keys ``"section.key"`` (or ``"profile"``) to new values, in the units of the config.
-
-        Returns
-        -------
-        Config
-            A new, validated config; this one is unchanged.
-
-        Raises
-        ------
-        ConfigError
-            An unknown key (with a did-you-mean suggestion) or a value of the wrong type or range.
+            Dotted keys ``"section.key"`` (or ``"profile"``) → new values, in the config's units.
         """
         profile = updates.get("profile", self.profile)
         base = Config(profile).to_dict() if profile != self.profile else None
@@ -481,11 +425,8 @@ def _check_room(copters, arena) -> None:
 
 
 def check_key(section: str, key: str | None = None) -> None:
-    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting.
-
-    Raises:
-        ConfigError: for an unknown section or key, with a close-match suggestion and the allowed names.
-    """
+    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting; a :class:`ConfigError`
+    for an unknown section or key, with a close-match suggestion and the allowed names."""
     if section not in SECTIONS:
         extra = suggest(section, [*SECTIONS, "profile"])
         raise ConfigError(f"unknown section [{section}]: expected one of {', '.join(SECTIONS)}{extra}")
@@ -523,20 +464,7 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
 
     Parameters
     ----------
-    source : str, Path, Mapping or None
-        A path to a TOML file, TOML text, a nested dict shaped like the TOML (``{"walls": {"bending":
-        False}}``), or None for every default.
-
-    Returns
-    -------
-    Config
-        The validated configuration.
-
-    Raises
-    ------
-    ConfigError
-        Unreadable file, bad TOML, an unknown key or a value of the wrong type or range; the message names
-        the key, the value and what is allowed.
+    source : str, Path, Mapping or None (errors: :class:`ConfigError` naming the key, the value and the range)
     """
     if source is None:
         return Config()
