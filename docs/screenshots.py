@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: page of the built site (relative to its root) → file name of its screenshot
+#: page of the built site (relative to its root, with an optional #anchor to scroll to) → file name of its screenshot
 PAGES = {
     "index.html": "site-landing.png",
     "api/generated/finkensim.world.html": "site-api-world.png",
@@ -25,7 +25,7 @@ PAGES = {
 WINDOW = (1280, 900)
 
 
-def screenshot(browser: str, page: Path, png: Path, window: tuple[int, int] = WINDOW) -> None:
+def screenshot(browser: str, page: Path, png: Path, window: tuple[int, int] = WINDOW, anchor: str = "") -> None:
     """Write a PNG screenshot of ``page`` (a local HTML file) taken by headless ``browser``.
 
     Parameters
@@ -38,6 +38,8 @@ def screenshot(browser: str, page: Path, png: Path, window: tuple[int, int] = WI
         Where to write the screenshot.
     window : tuple of int
         Window width and height, CSS pixels.
+    anchor : str
+        An element id to scroll to (``""``: the top of the page).
 
     Raises
     ------
@@ -49,7 +51,7 @@ def screenshot(browser: str, page: Path, png: Path, window: tuple[int, int] = WI
     with tempfile.TemporaryDirectory() as profile:
         cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
                f"--user-data-dir={profile}", f"--window-size={window[0]},{window[1]}",
-               f"--screenshot={png.resolve()}", page.resolve().as_uri()]
+               f"--screenshot={png.resolve()}", page.resolve().as_uri() + (f"#{anchor}" if anchor else "")]
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     if done.returncode != 0 or not png.is_file():
         raise SystemExit(f"screenshots: {' '.join(cmd)} failed (exit {done.returncode}):\n{done.stderr[-2000:]}")
@@ -65,9 +67,10 @@ def main(argv: list[str] | None = None) -> int:
     if shutil.which(args.browser) is None and not Path(args.browser).is_file():
         raise SystemExit(f"screenshots: browser {args.browser!r} not found: apt-get install chromium")
     args.out.mkdir(parents=True, exist_ok=True)
-    for page, name in PAGES.items():
-        screenshot(args.browser, args.site / page, args.out / name)
-        print(f"screenshots: {args.site / page} -> {args.out / name}")
+    for target, name in PAGES.items():
+        page, _, anchor = target.partition("#")
+        screenshot(args.browser, args.site / page, args.out / name, anchor=anchor)
+        print(f"screenshots: {args.site / target} -> {args.out / name}")
     return 0
 
 

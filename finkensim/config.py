@@ -323,7 +323,7 @@ def register_section(name: str, cls: type, seed_overrides: Mapping[str, Any] | N
 
 
 class Config:
-    """The whole configuration: one frozen section object per name in :data:`SECTIONS`.
+    """The whole configuration: one frozen section object per name in ``SECTIONS`` (section name → class).
 
     Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`, :func:`config_from_dict`,
     or ``Config()`` for all defaults; derive variants with :meth:`replace` (``cfg.replace({"walls.bending": False})``).
