@@ -1,4 +1,4 @@
-"""The ``finkensim`` command line.
+"""The ``finkensim`` command line::
 
     finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal] [--no-progress]
     finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
@@ -253,8 +253,8 @@ def _add_gap(sub) -> None:
         "gap", help="diagnose the sim-to-real gap of real flight logs",
         description="Replay real flight logs in the simulator, find where simulated and real sensor data disagree, "
                     "which catalogued effect explains it and how far the gap shrinks on held-out flights. Writes "
-                    "DIR/report.json (spec/gap-report.md), DIR/report.md and figures.")
-    p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (spec/flightlog.md)")
+                    "DIR/report.json (docs/formats/gap-report.md), DIR/report.md and figures.")
+    p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (docs/formats/flightlog.md)")
     p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
     p.add_argument("--out", default="out/gap", metavar="DIR",
                    help="output directory: report.json, report.md, figures, calibrated.toml (default: %(default)s)")

@@ -1,13 +1,11 @@
 """Configuration: frozen dataclasses with defaults for everything, loaded from TOML.
 
-Every field carries metadata (unit, allowed range or choices, one line of doc). The same
-validator runs when a dataclass is built in Python and when a TOML file is loaded, so a
-wrong key, type or range is always a :class:`ConfigError` naming the key, the value and
-what is allowed. Unknown keys are errors with a "did you mean" suggestion.
-
-Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted
-by the models). ``profile = "seed"`` switches every model to the behaviour described in the
-original V-REP report (see ``DESIGN.md``); keys given explicitly still override the profile.
+Every field carries metadata (unit, allowed range or choices, one line of doc). The same validator runs when a
+dataclass is built in Python and when a TOML file is loaded, so a wrong key, type or range is always a
+:class:`ConfigError` naming the key, the value and what is allowed. Unknown keys are errors with a "did you mean"
+suggestion. Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted by the
+models). ``profile = "seed"`` switches every model to the behaviour described in the original V-REP report (see
+``docs/user-guide/``); keys given explicitly still override the profile.
 """
 from __future__ import annotations
 
@@ -84,6 +82,7 @@ class CopterConfig(_Section):
 
 @dataclass(frozen=True)
 class SimulationConfig(_Section):
+    """Time stepping, run length, seed and batch size: world step ``dt`` s, ``duration`` s, ``seed``, ``n_envs`` (B)."""
     _section = "simulation"
     dt: float = _f(0.05, "s", 0.0, 1.0, lo_open=True, doc="world step")
     duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
@@ -254,11 +253,14 @@ def register_section(name: str, cls: type, seed_overrides: Mapping[str, Any] | N
 
 
 class Config:
-    """The whole configuration: one frozen section object per name in :data:`SECTIONS`.
+    """The whole configuration: one frozen section object per name in ``SECTIONS`` (section name → class).
 
-    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`,
-    :func:`config_from_dict`, or ``Config()`` for all defaults; derive variants with
-    :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`, :func:`config_from_dict`,
+    or ``Config()`` for all defaults; derive variants with :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+
+    Parameters
+    ----------
+    profile, **sections : ``"default"`` or ``"seed"`` (the V-REP report's models); sections by TOML table name
     """
 
     __slots__ = ("profile", "_sections")
@@ -310,8 +312,13 @@ class Config:
     def replace(self, updates: Mapping[str, Any]) -> "Config":
         """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``.
 
-        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults
-        take the new profile's; values set away from them are kept.
+        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults take the new
+        profile's; values set away from them are kept.
+
+        Parameters
+        ----------
+        updates : Mapping[str, Any]
+            Dotted keys ``"section.key"`` (or ``"profile"``) → new values, in the config's units.
         """
         profile = updates.get("profile", self.profile)
         base = Config(profile).to_dict() if profile != self.profile else None
@@ -348,11 +355,8 @@ def _check_room(copters, arena) -> None:
 
 
 def check_key(section: str, key: str | None = None) -> None:
-    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting.
-
-    Raises:
-        ConfigError: for an unknown section or key, with a close-match suggestion and the allowed names.
-    """
+    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting; a :class:`ConfigError`
+    for an unknown section or key, with a close-match suggestion and the allowed names."""
     if section not in SECTIONS:
         extra = suggest(section, [*SECTIONS, "profile"])
         raise ConfigError(f"unknown section [{section}]: expected one of {', '.join(SECTIONS)}{extra}")
@@ -386,7 +390,12 @@ def config_from_dict(data: Mapping[str, Any], _explicit: bool = False) -> Config
 
 
 def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
-    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults)."""
+    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults).
+
+    Parameters
+    ----------
+    source : str, Path, Mapping or None (errors: :class:`ConfigError` naming the key, the value and the range)
+    """
     if source is None:
         return Config()
     if isinstance(source, Mapping):

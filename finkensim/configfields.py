@@ -20,11 +20,8 @@ class ConfigError(ValueError):
 
 
 def field_spec(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
-    """A dataclass field with validation metadata.
-
-    ``lo``/``hi`` bound numbers (inclusive unless ``*_open``); ``choices`` lists allowed strings;
-    ``length`` fixes the length of a tuple field (None = any length).
-    """
+    """A dataclass field with validation metadata: ``lo``/``hi`` bound numbers (inclusive unless ``*_open``);
+    ``choices`` lists allowed strings; ``length`` fixes the length of a tuple field (None = any length)."""
     meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
     if isinstance(default, (list, tuple)):
         return field(default_factory=lambda d=tuple(default): d, metadata=meta)

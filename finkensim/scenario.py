@@ -121,13 +121,6 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
                     progress: bool = False) -> tuple[FlightLog, Trajectory, World]:
     """Simulate one flight of the configured behaviour and build its flight log.
 
-    Args:
-        cfg: a Config, a TOML path or text, a dict, or None for the embedded default scenario.
-        duration: flight length in s (default ``simulation.duration``).
-        seed: random seed (default ``simulation.seed``).
-        ideal: also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
-        progress: a progress bar on stderr (the flight runs in about 100 parts; the same results).
-
     One environment (B = 1, environment index 0) is placed at random and flown for
     round(duration / dt) steps by ``behaviour.kind`` in the compiled loop of
     :class:`~finkensim.swarm.SwarmSim`, whose sensor readings (for ``attraction_repulsion``, those the
@@ -138,11 +131,31 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     ``meta["config"]`` always describes the run exactly: ``config_from_dict(log.meta["config"])``
     rebuilds it.
 
-    Returns:
-        (log, traj, world): the validated :class:`FlightLog`; the :class:`Trajectory` of the
-        flight (arrays with a leading time axis and B = 1, e.g. ``traj.theta`` (T, 1, S) plate
-        angles in rad); the :class:`World` (physics) that ran it.
+    Parameters
+    ----------
+    cfg : Config, str, Path, Mapping or None
+        A Config, a TOML path or text, a dict, or None for the embedded default scenario.
+    duration : float, optional
+        Flight length, s (default ``simulation.duration``).
+    seed : int, optional
+        Random seed (default ``simulation.seed``).
+    ideal : bool
+        Also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
+    progress : bool
+        A progress bar on stderr (the flight runs in about 100 parts; the same results).
 
+    Returns
+    -------
+    log : FlightLog
+        The validated flight log (T samples, N copters).
+    traj : Trajectory
+        The flight's trajectory (arrays with a leading time axis and B = 1, e.g. ``traj.theta`` (T, 1, S)
+        plate angles in rad).
+    world : World
+        The physics that ran it.
+
+    Notes
+    -----
     Besides poses, the log carries ``meta`` = {copter_radius, altitude, source, tracking_sigma_xy,
     tracking_sigma_yaw, dt, duration, seed, behaviour, config} and the plate
     angles as the extra array ``wall_theta`` (T, S) rad (plates ordered south, east, north, west). The poses are the

@@ -284,7 +284,7 @@ def test_round_trip_csv_cli_auto_offset_and_no_gap(simulated, tmp_path):
     assert "clock offset +0.3" in p.stdout
     imported = load(tmp_path / "f.npz")
     c = imported.meta["import"]["clock_offset"]
-    assert abs(c["seconds"] - TRUE_OFFSET) < 0.05  # within one sonar sample (20 Hz): the README's claim
+    assert abs(c["seconds"] - TRUE_OFFSET) < 0.05  # within one sonar sample (20 Hz): docs/user-guide/import.md's claim
     assert c["uncertainty"] < 0.05
     # and within 5 of its own standard errors (the importer's bootstrap SD of the loss minimum)
     assert_within_se(c["seconds"], TRUE_OFFSET, c["uncertainty"], what="auto clock offset (s)")

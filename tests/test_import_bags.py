@@ -217,7 +217,7 @@ def test_every_format_imports_to_the_csv_flight(exported, kind):
     np.testing.assert_array_equal(from_bag.imu_gyro, from_csv.imu_gyro)
     auto = _cli(log, d, ["--bag", str(bag), "--topics", str(d / f"{kind}.toml")], d / f"{kind}-auto.npz", offset="auto")
     c = auto.meta["import"]["clock_offset"]
-    assert abs(c["seconds"] - 0.3) < 0.05  # within one sonar sample: the README's claim
+    assert abs(c["seconds"] - 0.3) < 0.05  # within one sonar sample: docs/user-guide/import.md's claim
     # and within 5 of its own standard errors (the importer's bootstrap SD of the loss minimum)
     assert_within_se(c["seconds"], 0.3, c["uncertainty"], what=f"auto clock offset from a {kind} bag (s)")
 

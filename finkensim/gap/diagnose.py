@@ -12,7 +12,7 @@
 4. **Which**: fit every catalogued effect (:mod:`.effects`) on the training flights, score it on
    held-out flights (:meth:`Diagnosis.fit`, :meth:`Diagnosis.score_heldout`).
 
-Steps 4's selection and 5, the verdict per ``spec/gap-report.md``, are :mod:`.selection`.
+Steps 4's selection and 5, the verdict per ``docs/formats/gap-report.md``, are :mod:`.selection`.
 """
 from __future__ import annotations
 
@@ -42,6 +42,33 @@ DISCRETE_FEATURES = {"hit_type", "neighbor_in_beam", "axis"}
 
 @dataclass
 class FitResult:
+    """One effect fitted by :meth:`Diagnosis.fit` and, once scored, by :meth:`Diagnosis.score_heldout`.
+
+    Scores and gaps are per reading, normalised by each sensor's scale and averaged over the sensors (lower
+    is better); NaN until scored.
+
+    Parameters
+    ----------
+    name : str
+        The effect's name.
+    values : dict
+        Fitted parameter values (name → value, in the parameters' units).
+    params : ModelParams
+        The model with the effect added at ``values``.
+    score_train : float
+        Mean CRPS on the training rows (the fit's objective).
+    score_heldout : float
+        Mean CRPS on the held-out rows.
+    gap_train : float
+        Mean gap on the training rows.
+    gap_heldout : float
+        Mean gap on the held-out rows.
+    rows_score : dict
+        Sensor → per-row held-out CRPS, shape (n,).
+    rows_gap : dict
+        Sensor → per-row held-out gap, shape (n,).
+    """
+
     name: str
     values: dict
     params: ModelParams
@@ -56,12 +83,21 @@ class FitResult:
 class Diagnosis:
     """Holds the prepared flights, tables and row sets; evaluates models; runs the search.
 
-    Args:
-        logs: flight logs; names: their names (file names) in the same order.
-        cfg: simulator configuration (error models, walls, ``[gap]`` settings).
-        heldout: names of held-out flights (default: every other flight; a single flight's second
-            half is held out).
-        progress: a callable ``progress(message)`` or None.
+    Parameters
+    ----------
+    logs : list of FlightLog
+        The flights to diagnose.
+    names : list of str
+        Their names (file names), in the same order.
+    cfg : Config
+        Simulator configuration (error models, walls, ``[gap]`` settings).
+    heldout : list of str, optional
+        Names of the held-out flights (default: every other flight; a single flight's second half is held
+        out).
+    progress : callable, optional
+        ``progress(message)``, told what the diagnosis is doing.
+    seed : int
+        Seed of the predictive draws (common random numbers for every model evaluated).
     """
 
     def __init__(self, logs: list[FlightLog], names: list[str], cfg: Config, heldout: list[str] | None = None,
@@ -314,7 +350,20 @@ class Diagnosis:
         return tot
 
     def fit(self, effect: fx.Effect, current: ModelParams) -> FitResult:
-        """Fit an effect's parameters on the training rows (others fixed at ``current``)."""
+        """Fit an effect's parameters on the training rows (the rest of the model fixed at ``current``).
+
+        Parameters
+        ----------
+        effect : Effect
+            The effect to fit.
+        current : ModelParams
+            The model it is added to.
+
+        Returns
+        -------
+        FitResult
+            The fitted values and the training score; held-out fields NaN (see :meth:`score_heldout`).
+        """
         vals = dict(effect.start(current))
         sensors = [s for s in effect.sensors if s in self.tables]
         custom = effect.extra.get("fit") or CUSTOM_FITS.get(effect.name)
@@ -360,6 +409,21 @@ class Diagnosis:
         return nelder_mead(f, vals, group, best_x, best_f)
 
     def score_heldout(self, res: FitResult, gap_before_parts=None):
+        """Score a fitted effect on the held-out rows (and its gap on the training rows).
+
+        Parameters
+        ----------
+        res : FitResult
+            A result of :meth:`fit`; updated in place.
+        gap_before_parts : object, optional
+            Not used (kept for callers that pass the configured model's gap).
+
+        Returns
+        -------
+        FitResult
+            ``res``, with ``score_heldout``, ``gap_heldout``, ``gap_train``, ``rows_score`` and ``rows_gap``
+            set (per reading, normalised; lower is better).
+        """
         ev, rows = self.evaluate(res.params, "heldout")
         res.rows_score = {s: c for s, (c, _) in ev.items()}
         res.rows_gap = {s: g for s, (_, g) in ev.items()}

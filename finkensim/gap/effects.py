@@ -37,7 +37,19 @@ from .model import ModelParams
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: bounds [lo, hi] in the unit of ``unit``; ``integer`` for step counts."""
+    """One parameter of an :class:`Effect`, fitted within its bounds.
+
+    Parameters
+    ----------
+    name : str
+        The key of the parameter in the values dict ``apply`` receives.
+    lo, hi : float
+        Bounds of the fit, in ``unit``.
+    integer : bool
+        An integer parameter (a step count): fitted over every integer in [lo, hi].
+    unit : str
+        Unit of the parameter (``"m"``, ``"s"``, ``""`` for a factor), shown in the report.
+    """
 
     name: str
     lo: float
@@ -48,6 +60,39 @@ class Param:
 
 @dataclass(frozen=True)
 class Effect:
+    """A candidate unmodelled effect: how a set of parameter values changes the simulator's sensor model.
+
+    Register one with :func:`register`; the diagnosis fits its parameters on the training flights
+    (minimising the mean CRPS of the sensors it changes) and scores it on the held-out flights.
+
+    Parameters
+    ----------
+    name : str
+        Unique name (the report's ``effects[].name``).
+    sensors : tuple of str
+        The sensors it changes: ``"ultrasonic"``, ``"ranging"``, ``"imu"``.
+    params : tuple of Param
+        Its parameters, with bounds and units.
+    apply : callable
+        ``apply(base, values) -> ModelParams``: the base :class:`~finkensim.gap.model.ModelParams` with the
+        effect added at ``values`` (parameter name → value); must be pure.
+    doc : str
+        One sentence for the report: what the effect is.
+    initial : callable, optional
+        ``initial(base) -> values``: the starting point of the fit (default: each parameter at ``lo``, or 0
+        when ``lo`` < 0).
+    expected_features : tuple of str
+        Location features where the effect is expected to show up (only ``finkensim gap-validate`` uses it).
+    catch_all : bool
+        An effect that absorbs part of any gap (a scale, a bias, pose noise): it is named only when no
+        structured effect comes within the tie tolerance of it.
+    separable : bool
+        Its parameters act on different sensors and are fitted one at a time.
+    extra : dict
+        Anything else; ``extra["fit"]`` replaces the generic fit: ``fit(diagnosis, effect, current, values)
+        -> values``.
+    """
+
     name: str
     sensors: tuple[str, ...]
     params: tuple[Param, ...]
@@ -61,7 +106,18 @@ class Effect:
     extra: dict = field(default_factory=dict)
 
     def start(self, base: ModelParams) -> dict:
-        """Parameter values that reproduce the base model (or the effect's neutral values)."""
+        """Parameter values that reproduce the base model (or the effect's neutral values).
+
+        Parameters
+        ----------
+        base : ModelParams
+            The model the effect is added to.
+
+        Returns
+        -------
+        dict
+            Parameter name → starting value, in the parameters' units.
+        """
         if self.initial is not None:
             return self.initial(base)
         return {p.name: (p.lo if p.lo >= 0 else 0.0) for p in self.params}
@@ -71,7 +127,18 @@ REGISTRY: dict[str, Effect] = {}
 
 
 def register(effect: Effect) -> Effect:
-    """Add (or replace) an effect in the catalogue; returns it."""
+    """Add (or replace) an effect in the catalogue.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect; an effect of the same name is replaced.
+
+    Returns
+    -------
+    Effect
+        ``effect`` itself (so that ``register`` can wrap a definition).
+    """
     REGISTRY[effect.name] = effect
     return effect
 

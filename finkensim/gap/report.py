@@ -1,4 +1,4 @@
-"""Write a gap report: ``report.json`` (``spec/gap-report.md``, to the letter), ``report.md`` and figures.
+"""Write a gap report: ``report.json`` (``docs/formats/gap-report.md``, to the letter), ``report.md`` and figures.
 
 The JSON has exactly the spec's keys; values that are not finite (an undefined CI) become
 ``null``. The Markdown report adds what people need to read it: the verdict in words, the

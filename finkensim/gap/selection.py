@@ -1,5 +1,5 @@
 """Which effect explains the gap, and the verdict: greedy forward selection over the fitted catalogue
-and the report (``spec/gap-report.md``).
+and the report (``docs/formats/gap-report.md``).
 
 Every candidate effect is fitted on the training flights and scored on the held-out ones; the best is
 added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap — or, after
@@ -456,11 +456,31 @@ def _clean(values: dict) -> dict:
 def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None, effect_names=None) -> GapReport:
     """Diagnose the sim-to-real gap of flight logs against the simulator configured by ``cfg``.
 
-    logs: :class:`~finkensim.flightlog.FlightLog` list; names: one name per log (file names);
-    cfg: the simulator's config (default: the defaults); heldout: names of the held-out flights (default:
-    the last; a single flight is split in halves); progress: callable taking a message, or None;
-    effect_names: the candidate effects (default ``cfg.gap.effects``, else the whole catalogue).
-    Returns a :class:`~finkensim.gap.result.GapReport` (``.to_spec()``, ``.write(out)``).
+    Parameters
+    ----------
+    logs : list of FlightLog
+        The flights (:class:`~finkensim.flightlog.FlightLog`; geometry is taken from each log).
+    names : list of str
+        One name per log (file names), used in the report.
+    cfg : Config, optional
+        The simulator's configuration (default: the defaults): error models, wall model, ``[gap]`` settings.
+    heldout : list of str, optional
+        Names of the held-out flights (default: every other flight; a single flight is split in halves).
+    progress : callable, optional
+        ``progress(message)``, told what the diagnosis is doing.
+    effect_names : list of str, optional
+        The candidate effects (default ``cfg.gap.effects``, else the whole catalogue).
+
+    Returns
+    -------
+    GapReport
+        The report (:class:`~finkensim.gap.result.GapReport`; ``.to_spec()`` is the JSON document,
+        ``.write(out)`` writes it with report.md and the figures).
+
+    Raises
+    ------
+    GapInputError
+        No logs, logs without sensor readings or with too few samples, unknown held-out flights or effects.
     """
     cfg = Config() if cfg is None else cfg
     diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress)

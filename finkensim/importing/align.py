@@ -1,7 +1,7 @@
 """Align an asynchronous recording on one time base and build its flight log.
 
 :func:`build_flight` turns a :class:`~.recording.Recording` (every copter tracked at its own times, every sensor
-reading at its own time, possibly on another clock) into one ``spec/flightlog.md`` flight:
+reading at its own time, possibly on another clock) into one ``docs/formats/flightlog.md`` flight:
 
 1. **Check** the tables (:func:`~.recording.check_recording`) and the units against the arena.
 2. **Clock offset**: reading time on the tracking clock = reading time + offset; ``"auto"`` estimates it from the

@@ -27,6 +27,7 @@ from .topics import TopicsSpec, parse_topics
 __all__ = ["read_bag", "write_bag", "BAG_KINDS"]
 
 BAG_KINDS = ("rosbag1", "rosbag2", "rosbag2-mcap", "mcap")
+"""Container kinds :func:`write_bag` writes: ROS 1 bag, ROS 2 bag (SQLite), ROS 2 bag in MCAP, plain MCAP."""
 _TRACKING_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/TransformStamped", "nav_msgs/msg/Odometry")
 _EXTRA = "reading bags needs the [import] extra: pip install 'finkensim[import]'"
 

@@ -2,17 +2,17 @@
 
 A :class:`Recording` is what a CSV pair, a ROS 1 / ROS 2 bag or an MCAP file holds once its messages are
 mapped to finkensim's channels, before any alignment: every copter's tracking at its own times, every
-reading at its own time. :func:`finkensim.importing.build_flight` turns it into one ``spec/flightlog.md``
+reading at its own time. :func:`finkensim.importing.build_flight` turns it into one ``docs/formats/flightlog.md``
 flight on a common time base.
 
 Channels (column ``channel`` of :attr:`Recording.readings`):
 
-==========================  ======  ==========================================================
-``ultrasonic/<i>``          m       sonar ``i`` (index into the sonar yaw list), measured from the sonar
-``ranging/<copter name>``   m       virtual-ranging reading of the named other copter
-``imu/acc_x``, ``imu/acc_y`` m/s²   body-frame acceleration (x forward, y left)
-``imu/gyro``                rad/s   yaw rate
-==========================  ======  ==========================================================
+=============================  ======  ==========================================================
+``ultrasonic/<i>``             m       sonar ``i`` (index into the sonar yaw list), measured from the sonar
+``ranging/<copter name>``      m       virtual-ranging reading of the named other copter
+``imu/acc_x``, ``imu/acc_y``   m/s²    body-frame acceleration (x forward, y left)
+``imu/gyro``                   rad/s   yaw rate
+=============================  ======  ==========================================================
 
 :func:`check_recording` is the one place that checks a recording, whatever file it came from: every error is a
 :class:`RecordingError` naming the table, the column or channel, the value and what was expected.
