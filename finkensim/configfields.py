@@ -19,6 +19,9 @@ class ConfigError(ValueError):
     """A configuration value is wrong. The message names the key, the value and what is allowed."""
 
 
+ConfigError.__module__ = "finkensim.config"  # its public home (``from finkensim.config import ConfigError``)
+
+
 def field_spec(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
     """A dataclass field with validation metadata: ``lo``/``hi`` bound numbers (inclusive unless ``*_open``);
     ``choices`` lists allowed strings; ``length`` fixes the length of a tuple field (None = any length)."""
@@ -29,6 +32,7 @@ def field_spec(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False,
 
 
 def describe_range(meta) -> str:
+    """The allowed values of a field as text ("one of 'a', 'b'", ">= 0 and <= 1 m"), from its metadata."""
     parts = []
     if meta["choices"] is not None:
         return "one of " + ", ".join(repr(c) for c in meta["choices"])
@@ -41,6 +45,8 @@ def describe_range(meta) -> str:
 
 
 def check_number(key, value, meta, kind):
+    """``value`` checked as a finite ``kind`` ("number" or "integer") within the field's range; a
+    :class:`ConfigError` naming ``key`` otherwise."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         article = "an" if kind[0] in "aeiou" else "a"
         raise ConfigError(f"{key} = {value!r}: expected {article} {kind}, got {type(value).__name__}")

@@ -88,6 +88,9 @@ class Effect:
         structured effect comes within the tie tolerance of it.
     separable : bool
         Its parameters act on different sensors and are fitted one at a time.
+    calibrate : callable, optional
+        ``calibrate(values, cfg) -> updates``: the config updates (dotted keys) under which the simulator flies
+        the effect at ``values`` on top of ``cfg`` (:mod:`finkensim.gap.calibrate`); None = not flown yet.
     extra : dict
         Anything else; ``extra["fit"]`` replaces the generic fit: ``fit(diagnosis, effect, current, values)
         -> values``.
