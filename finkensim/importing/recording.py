@@ -64,7 +64,8 @@ class Recording:
 
     Attributes:
         tracking: columns :data:`TRACKING_COLUMNS`; t float64 (s, tracking clock), copter str, x/y float64 (m,
-            arena frame), yaw float64 (rad, counter-clockwise from +x, any wrapping). Each copter at its own times.
+            arena frame), yaw float64 (rad, counter-clockwise from +x, any wrapping); optionally z float64 (m,
+            height). Each copter at its own times.
         readings: columns :data:`READING_COLUMNS`; t float64 (s, the sensors' clock, which may be offset from the
             tracking clock), copter str (the measuring copter), channel str, value float64. A lost reading may be
             absent or NaN.
