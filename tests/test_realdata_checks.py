@@ -164,3 +164,22 @@ def test_gap_command_names_readings_beyond_the_limit(tmp_path, capsys):
     assert main(["gap", str(tmp_path / "f.npz"), "--out", str(tmp_path / "gap"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "lie beyond ranging.max_range = 2.5 m" in err and "--limits from-log" in err and "Traceback" not in err
+
+
+def test_the_replays_ranging_table_uses_heights():
+    """With the log's z, true_range (and the ideal draws) are 3-D centre distances; without it, horizontal ones; a
+    slow pair's readings all stay in the table when the samples are strided."""
+    from finkensim.gap.predictive import RangingTable
+    from finkensim.gap.replay import prepare_flights
+
+    log = _ranging_log(3.0)
+    log.ranging[:] = np.nan
+    log.ranging[:, [0, 1], [0, 1]] = 0.0
+    log.ranging[5::7, 0, 1] = 2.0  # a slow link: every 7th sample
+    cfg = Config().replace({"gap.max_samples_per_flight": 10})
+    flat = RangingTable.build(prepare_flights([log], ["f"], cfg), cfg, 0)
+    log.pose[:, 1, 0] = 2.2  # 1.2 m apart horizontally, 1.6 m in height: 2.0 m in 3-D
+    log.extras["z"] = np.tile([0.4, 2.0], (log.t.size, 1))
+    tall = RangingTable.build(prepare_flights([log], ["f"], cfg), cfg, 0)
+    assert flat.n == tall.n == np.isfinite(log.ranging[10:, 0, 1]).sum()  # every reading after the history
+    assert np.allclose(tall.features["true_range"], 2.0)
