@@ -123,3 +123,22 @@ def test_written_csv_imports_without_edits(name, datasets, tmp_path):
     assert np.array_equal(log.ranging, direct.ranging, equal_nan=True)
     assert np.allclose(log.pose, direct.pose) and np.allclose(log.extras["z"], direct.extras["z"])
     assert log.meta["import"]["readings_placed"]["ranging"] == len(ds.recording.readings)
+
+
+def test_module_command_names_absent_data(monkeypatch, tmp_path, capsys):
+    from finkensim.datasets.__main__ import main
+
+    monkeypatch.setenv("FINKENSIM_DATA", str(tmp_path / "nowhere"))
+    assert main([str(tmp_path / "out")]) == 2
+    assert "real-data folder not found" in capsys.readouterr().err
+    assert main([str(tmp_path / "out"), "nosuch"]) == 2
+
+
+@needs_data
+def test_module_command_writes_and_prints_the_truth(tmp_path, capsys):
+    from finkensim.datasets.__main__ import main
+
+    assert main([str(tmp_path), "murp_trial16"]) == 0
+    out = capsys.readouterr().out
+    assert "robot1->robot2 +0.186" in out and "finkensim import --tracking" in out
+    assert (tmp_path / "murp_trial16" / "track.csv").exists()
