@@ -261,6 +261,9 @@ def _add_gap(sub) -> None:
     p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
                    help="held-out flights by file name (default: every other flight; one flight: its second half)")
     p.add_argument("--effects", nargs="+", default=None, metavar="EFFECT", help="only try these catalogued effects")
+    p.add_argument("--limits", choices=("config", "from-log"), default="config",
+                   help="range limits (sonar.max_range, ranging.max_range): from the config, where readings beyond "
+                        "them are an error, or raised to the logs' largest reading (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_gap)
 
@@ -294,7 +297,9 @@ def cmd_gap(args) -> int:
     say = None if args.no_progress else (lambda msg: print(f"{prog}: {msg}", file=sys.stderr, flush=True))
     t0 = time.perf_counter()
     try:
-        diag = Diagnosis(logs, names, cfg, heldout=args.heldout, progress=say)
+        diag = Diagnosis(logs, names, cfg, heldout=args.heldout, progress=say, limits=args.limits)
+        for note in diag.limit_notes.values():
+            print(f"{prog}: {note}", file=sys.stderr)
         report = run_diagnosis(diag, args.effects)
     except (GapInputError, ConfigError) as exc:
         raise UsageError(prog, str(exc)) from None
@@ -305,6 +310,8 @@ def cmd_gap(args) -> int:
     v = report["verdict"]
     if not v["significant_gap"]:
         verdict = "no significant gap"
+    elif v["unexplained"] and all(s in report.details.too_little_data for s in report.details.gap_sensors or ["-"]):
+        verdict = "significant gap; too little data to decide what explains it (see report.md)"
     elif v["unexplained"]:
         verdict = "significant gap, unexplained by the catalogue"
     else:

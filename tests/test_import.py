@@ -132,7 +132,7 @@ def test_positions_and_ranges_in_cm_or_mm(scale, unit):
     with pytest.raises(RecordingError, match=f"tracking x reaches .* looks like {unit}"):
         build_flight(rec(tracking=tr), (3, 4), clock_offset=0.0)
     rd = readings_table([(0.01 * k, "cf1", "ultrasonic/0", 1.5 * scale) for k in range(50)])
-    with pytest.raises(RecordingError, match=f"ultrasonic readings have a median .* looks like {unit}"):
+    with pytest.raises(RecordingError, match=f"stream 'cf1:ultrasonic/0' has a median .* looks like {unit}"):
         build_flight(rec(readings=rd), (3, 4), sonar_yaw=YAW4, sonar_offset=0.1, clock_offset=0.0)
 
 

@@ -17,9 +17,10 @@ NaN and stay NaN: nothing in this package drops, fills, interpolates or rescales
 from __future__ import annotations
 
 from .csv import from_csv
-from .format import DEFAULT_COPTER_RADIUS, DEFAULT_SONAR_YAW, FORMAT, SONAR_NAMES, FlightLog, FlightLogError
+from .format import (DEFAULT_COPTER_RADIUS, DEFAULT_SONAR_YAW, FORMAT, HEIGHTS, SONAR_NAMES, FlightLog, FlightLogError,
+                     heights)
 from .npz import load, save
 from .validation import validate
 
-__all__ = ["FORMAT", "SONAR_NAMES", "DEFAULT_SONAR_YAW", "DEFAULT_COPTER_RADIUS", "FlightLogError", "FlightLog",
+__all__ = ["FORMAT", "HEIGHTS", "heights", "SONAR_NAMES", "DEFAULT_SONAR_YAW", "DEFAULT_COPTER_RADIUS", "FlightLogError", "FlightLog",
            "validate", "save", "load", "from_csv"]

@@ -19,6 +19,8 @@ Arrays (all float64 unless stated; T samples, N copters, S sonars)::
     imu_gyro           (T, N)    rad/s  with imu_acc; yaw rate
     meta               str, 0-d      optional JSON object (copter_radius, altitude, source,
                                      tracking_sigma_xy, tracking_sigma_yaw, anything else)
+    z                  (T, N)    m   optional extra (a version-1 extra array, so every reader keeps it): each
+                                     copter's height; ranging is then compared with 3-D distances
 
 Frame: origin at one arena corner, x along the width, y along the length. Missing readings are
 NaN and stay NaN: nothing in this package drops, fills, interpolates or rescales data.
@@ -42,8 +44,10 @@ __all__ = [
     "STANDARD",
     "BLOCKS",
     "RESERVED_EXTRAS",
+    "HEIGHTS",
     "FlightLogError",
     "FlightLog",
+    "heights",
 ]
 
 FORMAT = "finkensim-flightlog/1"
@@ -78,6 +82,16 @@ BLOCKS = {
 
 RESERVED_EXTRAS = ("file", "allow_pickle")
 """Keyword names of ``np.savez_compressed`` itself: an extra array cannot be called like this."""
+
+
+HEIGHTS = "z"
+"""Name of the optional extra array of heights (T, N) m (version 1 allows extra arrays, so logs stay readable)."""
+
+
+def heights(log: "FlightLog") -> np.ndarray | None:
+    """The log's heights (T, N) m as float64, or None when it has no ``z`` extra (a planar flight)."""
+    z = (log.extras or {}).get(HEIGHTS)
+    return None if z is None else np.asarray(z, dtype=np.float64)
 
 
 class FlightLogError(ValueError):

@@ -30,6 +30,7 @@ from . import effects as fx
 from ..sensors.sonar_model import ERROR_NONE
 from .censoring import detect_censoring
 from .fits import CUSTOM_FITS, nelder_mead
+from .limits import range_limits
 from .model import ModelParams
 from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
@@ -37,6 +38,8 @@ from .scoring import brier, brier_gap, ensemble_terms_grouped
 from .stats import BlockBootstrap, fdr_significant
 
 SENSORS = ("ultrasonic", "ranging", "imu")
+#: a location (one bin of one feature) needs at least this many readings
+MIN_BIN_READINGS = 30
 DISCRETE_FEATURES = {"hit_type", "neighbor_in_beam", "axis"}
 
 
@@ -98,12 +101,16 @@ class Diagnosis:
         ``progress(message)``, told what the diagnosis is doing.
     seed : int
         Seed of the predictive draws (common random numbers for every model evaluated).
+    limits : {"config", "from-log"}
+        "config": readings beyond a sensor's configured ``max_range`` are a named error; "from-log": such limits
+        are raised to the logs' largest reading (:mod:`.limits`); ``limit_notes`` says what was taken from the logs.
     """
 
     def __init__(self, logs: list[FlightLog], names: list[str], cfg: Config, heldout: list[str] | None = None,
-                 progress: Callable[[str], None] | None = None, seed: int = 20261122):
+                 progress: Callable[[str], None] | None = None, seed: int = 20261122, limits: str = "config"):
         if not logs:
             raise GapInputError("no flight logs given: expected at least one REAL.npz")
+        cfg, self.limit_notes = range_limits(cfg, logs, names, limits)
         self.cfg = cfg
         self.seed = int(seed)
         self.M = cfg.gap.draws
@@ -302,13 +309,16 @@ class Diagnosis:
 
     # ------------------------------------------------------------------ where
     def locations(self, p: ModelParams):
-        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap."""
+        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap; each bin also carries
+        ``_residual``, the median of reading − model median in the sensor's own unit (m for the range sensors)."""
         cfg = self.cfg.gap
         res, rows = self.evaluate(p, "all")
         locs = []
         for s, (_, gap) in res.items():
             tab = self.tables[s]
             r = rows[s]
+            D, y, _ = self.censored_draws(s, p, r)
+            resid = y - np.median(D, axis=1)
             bb = BlockBootstrap(self.block_ids(s, r), n_boot=cfg.n_boot, seed=self.seed)
             chans = [("all", np.ones(r.size, bool))]
             if s == "ultrasonic" and len(tab.channel_names) > 1:
@@ -317,16 +327,18 @@ class Diagnosis:
                 for feat, fv in tab.features.items():
                     v = fv[r]
                     ok = np.isfinite(v) & cmask
-                    if ok.sum() < 30:
+                    if ok.sum() < MIN_BIN_READINGS:
                         continue
                     for lo, hi in _bins(v[ok], feat, cfg.n_bins):
                         m = ok & (v >= lo) & (v < hi)
-                        if m.sum() < 30:
+                        if m.sum() < MIN_BIN_READINGS:
                             continue
                         st = bb.stats(gap, m)
+                        rm = resid[m & np.isfinite(resid)]
                         locs.append({"sensor": s, "channel": cname, "feature": feat, "low": float(lo),
                                      "high": float(hi) if np.isfinite(hi) else 1e9, "gap": st.mean,
-                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive})
+                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive,
+                                     "_residual": float(np.median(rm)) if rm.size else math.nan})
         sig = fdr_significant([loc["_p"] for loc in locs], cfg.alpha)
         for loc, sg in zip(locs, sig):
             loc["_significant"] = bool(sg) and loc["gap"] > cfg.margin

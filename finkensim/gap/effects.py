@@ -128,6 +128,27 @@ class Effect:
 
 REGISTRY: dict[str, Effect] = {}
 
+#: a fitted value within this share of its range from a bound sits at the bound
+AT_BOUND_SHARE = 0.01
+
+
+def at_bound(effect: Effect, values: dict, base: ModelParams) -> list[str]:
+    """Names of the parameters of ``effect`` whose fitted ``values`` sit at a bound of their range (within
+    :data:`AT_BOUND_SHARE` of it), leaving out a bound that is the effect's neutral value (no dropout, no delay):
+    the fit wanted to go further, so the range is too narrow or another effect is at work."""
+    neutral = effect.start(base)
+    out = []
+    for prm in effect.params:
+        v = values.get(prm.name)
+        if v is None or not math.isfinite(float(v)):
+            continue
+        tol = AT_BOUND_SHARE * (prm.hi - prm.lo)
+        for bound in (prm.lo, prm.hi):
+            if abs(float(v) - bound) <= tol and abs(float(neutral.get(prm.name, math.nan)) - bound) > tol:
+                out.append(prm.name)
+                break
+    return out
+
 
 def register(effect: Effect) -> Effect:
     """Add (or replace) an effect in the catalogue.

@@ -23,7 +23,7 @@ from numba import njit, prange
 
 from ..arena import Arena
 from ..config import Config
-from ..flightlog import FlightLog
+from ..flightlog import FlightLog, heights
 from ..flightlog.messages import plural
 from ..world import walls_from_positions
 from ..kernels.geometry import point_segment_distance
@@ -44,7 +44,8 @@ class GapInputError(ValueError):
 class Flight:
     """One logged flight prepared for replay.
 
-    pos (T, N, 2) m, yaw (T, N) rad, yaw_unwrapped (T, N) rad, t (T,) s; theta_unit (T, S_p) rad:
+    pos (T, N, 2) m, yaw (T, N) rad, yaw_unwrapped (T, N) rad, t (T,) s; z (T, N) m heights (the log's ``z``
+    extra; zeros for a planar log, so ranging distances are horizontal there); theta_unit (T, S_p) rad:
     plate angles of bending walls (config wall parameters, bending on) driven by the logged
     copters; plate_distance (T, S_p) m: each plate's distance to the nearest logged copter body; samples (K,) indices of the time samples used (strided, skipping the first few so
     that finite differences have history).
@@ -68,6 +69,7 @@ class Flight:
     sonar_yaw: np.ndarray | None = None
     sonar_offset: float = 0.0
     extras: dict = field(default_factory=dict)
+    z: np.ndarray | None = None
 
     @property
     def n_copters(self) -> int:
@@ -101,6 +103,29 @@ class Flight:
         return PoseNoise(float(sigma_xy), float(sigma_yaw), int(seed), int(self.index))
 
 
+def synchronous_pairs(ranging: np.ndarray) -> np.ndarray:
+    """(N, N) bool: the pairs of a ranging log (T, N, N) m read at every sample: the most common interval between
+    a pair's finite readings is one sample (random dropouts leave it so: P(1) = 1 − p is the largest for any p).
+    A pair read at its own slower rate (a radio link every 2.5 s in a 100 Hz log) is not. A pair with fewer than
+    two readings follows the majority of the other pairs (a pair that always dropped out in a synchronous log)."""
+    N = ranging.shape[1]
+    sync = np.zeros((N, N), dtype=bool)
+    known = np.zeros((N, N), dtype=bool)
+    for a in range(N):
+        for b in range(N):
+            if a == b:
+                continue
+            k = np.flatnonzero(np.isfinite(ranging[:, a, b]))
+            if k.size >= 2:
+                steps, counts = np.unique(np.diff(k), return_counts=True)
+                sync[a, b] = steps[np.argmax(counts)] == 1
+                known[a, b] = True
+    off = ~np.eye(N, dtype=bool)
+    majority = bool(sync[known].mean() >= 0.5) if known.any() else True
+    sync[off & ~known] = majority
+    return sync
+
+
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:
     """Prepare each log for replay (geometry from the log, walls from the config, sample stride)."""
     flights = []
@@ -129,9 +154,16 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
             raise GapInputError(f"{name}: the log has {plural(t.size, 'sample')}; expected more than {first + 1}")
         stride = max(1, int(np.ceil((t.size - first) / cfg.gap.max_samples_per_flight)))
         samples = np.arange(first, t.size, stride, dtype=np.int64)
+        if stride > 1 and log.ranging is not None:  # a pair read at its own slow rate keeps every reading
+            r = np.asarray(log.ranging)
+            slow = ~synchronous_pairs(r) & ~np.eye(r.shape[1], dtype=bool)
+            extra = np.flatnonzero(np.isfinite(r[:, slow]).any(axis=1)) if slow.any() else np.zeros(0, np.int64)
+            samples = np.union1d(samples, extra[extra >= first]).astype(np.int64)
+        z = heights(log)
+        z = np.zeros(pos.shape[:2]) if z is None else np.ascontiguousarray(z)
         f = Flight(name=name, index=i, log=log, t=t, dt=dt, pos=pos, yaw=yaw,
                    yaw_unwrapped=np.unwrap(yaw, axis=0), arena=arena, radius=radius, sigma_xy=sx, sigma_yaw=sy,
-                   theta_unit=theta, plate_distance=plate_distance, samples=samples)
+                   theta_unit=theta, plate_distance=plate_distance, samples=samples, z=z)
         if log.ultrasonic is not None:
             f.sonar_yaw = np.ascontiguousarray(log.ultrasonic_yaw, dtype=float)
             f.sonar_offset = float(log.ultrasonic_offset)
@@ -349,9 +381,10 @@ def _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw):
 # --------------------------------------------------------------------------------------- ranging
 
 @njit(cache=True, parallel=True)
-def ranging_draws(pos, yaw, times, noise, M, out):
-    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0). noise: :class:`PoseNoise`
-    (ranging has no direction: pass sigma_yaw = 0)."""
+def ranging_draws(pos, z, yaw, times, noise, M, out):
+    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0), 3-D with the heights z (T, N) m
+    (zeros: horizontal distances, bit for bit). noise: :class:`PoseNoise` (ranging has no direction: pass
+    sigma_yaw = 0; heights are not perturbed)."""
     K = times.shape[0]
     N = pos.shape[1]
     for i in prange(K * M):
@@ -365,7 +398,8 @@ def ranging_draws(pos, yaw, times, noise, M, out):
             for b in range(a + 1, N):
                 dx = P[a, 0] - P[b, 0]
                 dy = P[a, 1] - P[b, 1]
-                d = np.sqrt(dx * dx + dy * dy)
+                dz = z[k, a] - z[k, b]
+                d = np.sqrt(dx * dx + dy * dy + dz * dz)
                 out[ti, a, b, m] = d
                 out[ti, b, a, m] = d
 

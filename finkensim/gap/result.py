@@ -53,9 +53,14 @@ class GapDetails:
     reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
     score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None; targeted: when the omnibus
     test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.selection.run_diagnosis`),
-    {effect, sensors, improvement, ci, p, threshold, passed}, else None; added_params: effect → its fitted
-    parameters in the final selection (after any joint refit); config: the diagnosed :class:`~finkensim.config.Config`
-    (what :meth:`GapReport.calibrated_config` starts from).
+    {effect, sensors, improvement, ci, p, threshold, passed}, else None; correction_skipped: sensor (or "all") →
+    why no correction was fitted although the verdict is unexplained; limit_notes: sensor → range limit taken from
+    the logs (:mod:`~finkensim.gap.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:
+    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.honesty`); residuals: per location
+    (same order), the median of reading − model median in the sensor's unit (m for ultrasonic and ranging);
+    at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.effects.at_bound`);
+    added_params: effect → its fitted parameters in the final selection (after any joint refit); config: the
+    diagnosed :class:`~finkensim.config.Config` (what :meth:`GapReport.calibrated_config` starts from).
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -83,6 +88,12 @@ class GapDetails:
     censoring: dict = field(default_factory=dict)
     correction: object = None
     targeted: dict | None = None
+    correction_skipped: dict = field(default_factory=dict)
+    limit_notes: dict = field(default_factory=dict)
+    sample_sizes: dict = field(default_factory=dict)
+    too_little_data: dict = field(default_factory=dict)
+    residuals: list = field(default_factory=list)
+    at_bound: dict = field(default_factory=dict)
     added_params: dict = field(default_factory=dict)
     config: object = None
 

@@ -37,7 +37,8 @@ def add_parser(sub) -> None:
                     "kept in the log's meta['import'].",
     )
     src = p.add_argument_group("input (a CSV pair or a bag)")
-    src.add_argument("--tracking", metavar="TRACK.csv", help="CSV with columns t, copter, x, y, yaw (s, name, m, m, rad)")
+    src.add_argument("--tracking", metavar="TRACK.csv", help="CSV with columns t, copter, x, y, yaw (s, name, m, m, rad) "
+                                                            "and optionally z (m, height: ranging is then 3-D)")
     src.add_argument("--readings", metavar="READ.csv",
                      help="CSV with columns t, copter, channel, value; channels ultrasonic/<i>, ranging/<copter>, "
                           "imu/acc_x, imu/acc_y, imu/gyro")
