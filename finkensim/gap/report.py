@@ -207,7 +207,7 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
         lines.append(f"| {loc['sensor']} | {loc['channel']} | {loc['feature']} | {bin_text(loc)} | {_fmt(loc['gap'])} | "
                      f"{_fmt(loc['ci'][0])} … {_fmt(loc['ci'][1])} | {loc['n']} | {'yes' if i in sig else ''} | "
                      f"{_signed(res[i], loc['sensor'])} |")
-    lines += [f"", *residual_sentences(report["locations"], res)]
+    lines += ["", *residual_sentences(report["locations"], res)]
     for (s, c), feats in uniform_features(report["locations"]).items():
         lines += ["", f"Uniform across bins: the {s}{'' if c == 'all' else '/' + c} gap is the same in every bin of "
                       f"{', '.join(feats)} (every bin's 95 % CI overlaps the others)."]

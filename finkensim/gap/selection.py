@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 
-from ..config import Config
 from . import effects as fx
 from .correction import fit_correction
 from .diagnose import Diagnosis, FitResult
@@ -26,7 +25,7 @@ from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .shrink import ShrinkMeter
 
-__all__ = ["run_diagnosis", "diagnose"]
+__all__ = ["run_diagnosis"]
 
 
 def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4,
@@ -461,41 +460,3 @@ def _best_joint_pair(diag, first_added, others, evaluated):
 
 def _clean(values: dict) -> dict:
     return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in values.items()}
-
-
-def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None, effect_names=None,
-             limits: str = "config") -> GapReport:
-    """Diagnose the sim-to-real gap of flight logs against the simulator configured by ``cfg``.
-
-    Parameters
-    ----------
-    logs : list of FlightLog
-        The flights (:class:`~finkensim.flightlog.FlightLog`; geometry is taken from each log).
-    names : list of str
-        One name per log (file names), used in the report.
-    cfg : Config, optional
-        The simulator's configuration (default: the defaults): error models, wall model, ``[gap]`` settings.
-    heldout : list of str, optional
-        Names of the held-out flights (default: every other flight; a single flight is split in halves).
-    progress : callable, optional
-        ``progress(message)``, told what the diagnosis is doing.
-    effect_names : list of str, optional
-        The candidate effects (default ``cfg.gap.effects``, else the whole catalogue).
-    limits : {"config", "from-log"}
-        "config": readings beyond a sensor's configured ``max_range`` are a named error; "from-log": such limits
-        are raised to the logs' largest reading (:mod:`.limits`).
-
-    Returns
-    -------
-    GapReport
-        The report (:class:`~finkensim.gap.result.GapReport`; ``.to_spec()`` is the JSON document,
-        ``.write(out)`` writes it with report.md and the figures).
-
-    Raises
-    ------
-    GapInputError
-        No logs, logs without sensor readings or with too few samples, unknown held-out flights or effects.
-    """
-    cfg = Config() if cfg is None else cfg
-    diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress, limits=limits)
-    return run_diagnosis(diag, effect_names)
