@@ -183,10 +183,11 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
     cfg = target if isinstance(target, Config) else load_config(target)
     cfg = cfg.replace({"simulation.duration": cfg.simulation.dt * max(1, n_steps)})
     names = list(METRICS)
-    tasks = [dict(run_id=k, config=cfg.to_dict(), seed=seed + k, metrics=names, runner=None, single_thread=True)
-             for k in range(2)]
     results = {}
     for name in executors:
+        # workers run one numba thread each (as a sweep's do); this process keeps its own thread count
+        tasks = [dict(run_id=k, config=cfg.to_dict(), seed=seed + k, metrics=names, runner=None,
+                      single_thread=name != "serial") for k in range(2)]
         if name == "serial":
             rows = list(ex.run_serial(tasks))
         elif name == "process":
@@ -205,7 +206,7 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
         results[name] = by_run
     ref_name = executors[0]
     for name in executors[1:]:
-        for k in range(len(tasks)):
+        for k in range(2):
             for m in names:
                 a, b = results[ref_name][k][m], results[name][k][m]
                 if first_difference(np.array(a), np.array(b)) is not None:

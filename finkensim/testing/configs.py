@@ -20,7 +20,7 @@ from typing import Any, Iterable, Mapping
 from hypothesis import assume as reject_unless
 from hypothesis import strategies as st
 
-__all__ = ["configs", "scenarios", "field_values", "SCENARIO_BOUNDS", "SCENARIO_SECTIONS"]
+__all__ = ["configs", "scenarios", "field_values", "config_toml", "toml_value", "SCENARIO_BOUNDS", "SCENARIO_SECTIONS"]
 
 SCENARIO_SECTIONS = ("arena", "walls", "copters", "simulation", "behaviour", "sonar", "ranging", "imu")
 """Sections :func:`scenarios` varies (everything a flight uses; ``gap`` is the diagnosis's)."""
@@ -32,6 +32,8 @@ SCENARIO_BOUNDS: dict[str, tuple[float, float]] = {
     "simulation.dt": (0.01, 0.2), "simulation.n_envs": (1, 3),
     "behaviour.redraw_steps": (1, 50),
     "sonar.beam_rays": (1, 9), "sonar.n_slots": (1, 8), "ranging.max_range": (0.1, 10.0),
+    # IMU noise well above a real sensor's, yet below what the flight-log loader's unit check reads as cm/s^2
+    "imu.acc_noise_density": (0.0, 1.0), "imu.acc_bias_walk": (0.0, 1.0),
 }
 """Narrower ranges :func:`scenarios` uses so that a flight is small (each inside the declared range)."""
 
@@ -264,3 +266,33 @@ def scenarios(draw, *, max_copters: int = 6, max_steps: int = 40, sections: Iter
         return cfg
     steps = draw(st.integers(1, max(1, int(max_steps))))
     return cfg.replace({"simulation.duration": cfg.simulation.dt * steps})
+
+
+def toml_value(v: Any) -> str:
+    """``v`` (bool, int, float incl. nan/inf, str, list/tuple, dict) as a TOML value; floats at full precision."""
+    import json
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"no TOML form for {type(v).__name__} {v!r}")
+
+
+def config_toml(cfg) -> str:
+    """A scenario file (TOML text) that :func:`~finkensim.config.load_config` reads back as ``cfg``, every key
+    written."""
+    data = cfg.to_dict()
+    lines = [f"profile = {toml_value(data.pop('profile'))}"]
+    for section, values in data.items():
+        lines.append(f"\n[{section}]")
+        lines += [f"{key} = {toml_value(value)}" for key, value in values.items()]
+    return "\n".join(lines) + "\n"

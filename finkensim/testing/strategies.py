@@ -23,10 +23,10 @@ validator's limits), never copied. The modules: :mod:`.configs`, :mod:`.models`,
 """
 from __future__ import annotations
 
-from .configs import SCENARIO_BOUNDS, SCENARIO_SECTIONS, configs, field_values, scenarios
+from .configs import SCENARIO_BOUNDS, SCENARIO_SECTIONS, config_toml, configs, field_values, scenarios, toml_value
 from .logs import LOG_SENSORS, NO_ECHO, RecordingCase, flight_logs, recordings
 from .models import SENSOR_KINDS, effects, sensor_models, world_states
 
-__all__ = ["configs", "scenarios", "field_values", "world_states", "sensor_models", "effects", "flight_logs",
+__all__ = ["configs", "scenarios", "field_values", "config_toml", "toml_value", "world_states", "sensor_models", "effects", "flight_logs",
            "recordings", "RecordingCase", "SCENARIO_BOUNDS", "SCENARIO_SECTIONS", "SENSOR_KINDS", "LOG_SENSORS",
            "NO_ECHO"]
