@@ -64,9 +64,11 @@ def _narrow(dotted: str, meta: Mapping, bounds: tuple[float, float] | None) -> t
     if blo > bhi:
         raise ValueError(f"bounds[{dotted!r}] = {bounds!r}: expected (low, high) with low <= high")
     if (lo is not None and (blo < lo or (blo == lo and lo_open))) or (hi is not None and (bhi > hi or (bhi == hi and hi_open))):
-        from ..config import _describe_range
+        from ..config import SECTIONS, describe
 
-        raise ValueError(f"bounds[{dotted!r}] = {bounds!r}: expected a range inside the declared {_describe_range(meta)}")
+        section, key = dotted.split(".")
+        allowed = next(row[3] for row in describe(SECTIONS[section]) if row[0] == key)
+        raise ValueError(f"bounds[{dotted!r}] = {bounds!r}: expected a range inside the declared {allowed}")
     return blo, bhi, False, False
 
 

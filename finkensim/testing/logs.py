@@ -16,7 +16,7 @@ import numpy as np
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from .models import _sizes
+from .models import sizes
 
 __all__ = ["flight_logs", "recordings", "RecordingCase", "LOG_SENSORS", "NO_ECHO"]
 
@@ -86,8 +86,8 @@ def flight_logs(draw, *, n_steps=(1, 8), n_copters=(1, 4), sensors: Iterable[str
     if bad:
         raise ValueError(f"sensors = {tuple(sensors)!r}: expected names from {LOG_SENSORS}")
     present = [s for s in chosen if draw(st.booleans())] if sensors is None else list(chosen)
-    T = draw(_sizes(n_steps, 1, 10**7))
-    N = draw(_sizes(n_copters, 1, 10**5))
+    T = draw(sizes(n_steps, 1, 10**7))
+    N = draw(sizes(n_copters, 1, 10**5))
     if arena is None:
         big = ARENA_CM_ABOVE if conventions else 10.0
         width, length = draw(st.floats(0.5, big)), draw(st.floats(0.5, big))
@@ -115,7 +115,7 @@ def flight_logs(draw, *, n_steps=(1, 8), n_copters=(1, 4), sensors: Iterable[str
             extras["clock_offset"] = np.array(draw(st.floats(-1.0, 1.0)))
     kw: dict[str, Any] = {}
     if "ultrasonic" in present:
-        S = draw(_sizes(n_sonars, 1, 64)) if n_sonars is not None else (draw(st.integers(1, 6)) if conventions else 4)
+        S = draw(sizes(n_sonars, 1, 64)) if n_sonars is not None else (draw(st.integers(1, 6)) if conventions else 4)
         if conventions:
             yaw_s = _floats(draw, (S,), -math.pi, math.pi)
             offset = draw(st.floats(0.0, min(0.3, SCALAR_LIMITS["ultrasonic_offset"])))

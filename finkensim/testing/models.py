@@ -18,11 +18,13 @@ from hypothesis.extra import numpy as hnp
 
 __all__ = ["world_states", "sensor_models", "effects", "SENSOR_KINDS"]
 
+PLATE_ANGLE_MAX = 1.5  # rad: plates drawn within +-86 deg (the world's own swing stays within +-90 deg)
+
 SENSOR_KINDS = ("sonar", "ranging", "imu")
 """What :func:`sensor_models` builds: SonarModel, RangingModel, ImuModel."""
 
 
-def _sizes(value, lo: int, hi: int) -> st.SearchStrategy:
+def sizes(value, lo: int, hi: int) -> st.SearchStrategy:
     """An int, a (low, high) pair or a strategy, as a strategy of ints in [lo, hi]."""
     if isinstance(value, st.SearchStrategy):
         return value
@@ -71,7 +73,7 @@ def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, movi
     Copter centres lie in [r, width − r] x [r, length − r] (where the world keeps them); with ``separated`` no
     two bodies overlap (centres ≥ 2 r apart). Yaw in [−π, π). With ``moving``, velocities within
     ``copters.max_speed`` (m/s) and yaw rates within ``copters.max_yaw_rate_deg``; with ``plates``, plate angles
-    within ±60° with their rates and PID integrals (else hanging still). Contact flags and counters start at 0
+    within ±1.5 rad with rates within ±3 rad/s and PID integrals within ±8 rad s (else hanging still). Contact flags and counters start at 0
     (the world recomputes them at the next step). Build worlds for random configs by drawing both::
 
         cfg = draw(fst.scenarios()); state = draw(fst.world_states(cfg))
@@ -81,7 +83,7 @@ def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, movi
 
     cfg = Config() if cfg is None else cfg
     world = World(cfg)
-    B = draw(_sizes(n_envs, 1, 10**6))
+    B = draw(sizes(n_envs, 1, 10**6))
     N, S = cfg.copters.n, world.arena.n_plates
     r = cfg.copters.radius
     lo = np.array([r, r])
@@ -100,10 +102,10 @@ def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, movi
         w = math.radians(cfg.copters.max_yaw_rate_deg)
         state = replace(state, vel=vel, yaw_rate=draw(hnp.arrays(np.float64, (B, N), elements=st.floats(-w, w))))
     if plates:
-        amp = math.radians(60.0)
+        amp = PLATE_ANGLE_MAX
         state = replace(state, theta=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-amp, amp))),
                         omega=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-3.0, 3.0))),
-                        integ=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-5.0, 5.0))))
+                        integ=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-8.0, 8.0))))
     return state
 
 
