@@ -115,6 +115,13 @@ def field_values(section: str, key: str, bounds: tuple[float, float] | None = No
     raise TypeError(f"{dotted}: no strategy for field type {t}")  # a new field type: teach this function
 
 
+def _within(value: Any, bounds: tuple[float, float]) -> bool:
+    """Whether a number, or every number of a list (of points), lies in [low, high]."""
+    values = value if isinstance(value, tuple) else (value,)
+    flat = [v for item in values for v in (item if isinstance(item, tuple) else (item,))]
+    return all(bounds[0] <= v <= bounds[1] for v in flat)
+
+
 class _Draft:
     """The keys drawn so far (explicit values by section) over the profile's defaults."""
 
@@ -207,7 +214,9 @@ def configs(draw, sections: Iterable[str] | None = None, *, bounds: Mapping[str,
         sections: config sections whose keys are drawn (default: every registered section); the other keys keep
             their (profile) defaults.
         bounds: ``{"copters.n": (1, 4), ...}``: narrower ranges for number keys (each inside the declared range;
-            a list key's numbers each); the key is drawn even if its section is not in ``sections``.
+            a list key's numbers each). A key whose default lies outside its bounds is always drawn (also when its
+            section is not in ``sections``); one whose default lies inside is drawn like any other key of
+            ``sections`` (and shrinks to its default).
         fixed: ``{"behaviour.kind": "hover", ...}``: keys set to these values (checked by the config itself).
         profiles: profiles to draw from (default: every one in :data:`~finkensim.config.PROFILES`).
         max_flight_bytes: the arrays of one recorded flight (:func:`finkensim.budget.flight_arrays`) stay below
@@ -230,24 +239,26 @@ def configs(draw, sections: Iterable[str] | None = None, *, bounds: Mapping[str,
         check_key(name)
     profile = draw(st.sampled_from(sorted(PROFILES, key=lambda p: p != "default") if profiles is None else list(profiles)))
     data: dict[str, dict[str, Any]] = {}
+    base = _Draft(profile, {}, set())
+
+    def violates(dotted: str) -> bool:  # the (profile) default lies outside the key's bounds
+        return dotted in bounds and not _within(base.get(dotted), bounds[dotted])
+
     keys = [f"{sec}.{key}" for sec in names for key in _fields(sec)]
-    keys += [k for k in bounds if k not in keys]
+    keys += [k for k in bounds if k not in keys and violates(k)]
     for dotted in keys:
         if dotted in fixed:
             continue
         sec, key = dotted.split(".")
-        if dotted in bounds or draw(st.booleans()):  # shrinks to False: the key keeps its default
+        if violates(dotted) or draw(st.booleans()):  # shrinks to False: the key keeps its default
             data.setdefault(sec, {})[key] = draw(field_values(sec, key, bounds.get(dotted)))
     for dotted, value in fixed.items():
         sec, key = dotted.split(".")
         data.setdefault(sec, {})[key] = value
     draft = _Draft(profile, data, set(fixed))
     _combine(draw, draft, max_flight_bytes)
-    for dotted, (lo, hi) in bounds.items():  # a combination rule moved a bounded key out: not this example
-        value = draft.get(dotted)
-        values = value if isinstance(value, tuple) else (value,)
-        flat = [v for item in values for v in (item if isinstance(item, tuple) else (item,))]
-        reject_unless(all(lo <= v <= hi for v in flat))
+    for dotted, pair in bounds.items():  # a combination rule moved a bounded key out: not this example
+        reject_unless(_within(draft.get(dotted), pair))
     return config_from_dict(draft.as_dict())
 
 

@@ -65,16 +65,17 @@ def _separated(draw, frac: np.ndarray, lo: np.ndarray, hi: np.ndarray, min_dista
 
 
 @st.composite
-def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, moving: bool = True,
-                 plates: bool = True, seed=st.integers(0, 2**63 - 1)):
+def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, clearance: float = 0.0,
+                 moving: bool = True, plates: bool = True, seed=st.integers(0, 2**63 - 1)):
     """A :class:`~finkensim.world.WorldState` for ``cfg`` (a Config; None = defaults): B = ``n_envs``
     environments (an int, a (low, high) pair or a strategy) of ``copters.n`` copters.
 
     Copter centres lie in [r, width − r] x [r, length − r] (where the world keeps them); with ``separated`` no
-    two bodies overlap (centres ≥ 2 r apart). Yaw in [−π, π). With ``moving``, velocities within
-    ``copters.max_speed`` (m/s) and yaw rates within ``copters.max_yaw_rate_deg``; with ``plates``, plate angles
-    within ±1.5 rad with rates within ±3 rad/s and PID integrals within ±8 rad s (else hanging still). Contact flags and counters start at 0
-    (the world recomputes them at the next step). Build worlds for random configs by drawing both::
+    two bodies overlap and ``clearance`` m lies between any two (centres ≥ 2 r + clearance apart). Yaw in
+    [−π, π). With ``moving``, velocities within ``copters.max_speed`` (m/s) and yaw rates within
+    ``copters.max_yaw_rate_deg``; with ``plates``, plate angles within ±1.5 rad, their rates within ±3 rad/s and
+    PID integrals within ±8 rad s (else hanging still). Contact flags and counters start at 0 (the world
+    recomputes them at the next step). Build worlds for random configs by drawing both::
 
         cfg = draw(fst.scenarios()); state = draw(fst.world_states(cfg))
     """
@@ -89,7 +90,7 @@ def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, movi
     lo = np.array([r, r])
     hi = np.array([cfg.arena.width - r, cfg.arena.length - r])
     frac = _unit(draw, (B, N, 2))
-    pos = _separated(draw, frac, lo, hi, 2 * r) if separated else lo + frac * (hi - lo)
+    pos = _separated(draw, frac, lo, hi, 2 * r + clearance) if separated else lo + frac * (hi - lo)
     pos = np.clip(pos, lo, hi)  # rounding in lo + frac (hi - lo) must not leave [lo, hi]
     yaw = draw(hnp.arrays(np.float64, (B, N), elements=st.floats(-math.pi, math.pi, exclude_max=True)))
     state = world.init(n_envs=B, seed=draw(seed) if isinstance(seed, st.SearchStrategy) else int(seed),
