@@ -214,9 +214,8 @@ def configs(draw, sections: Iterable[str] | None = None, *, bounds: Mapping[str,
         sections: config sections whose keys are drawn (default: every registered section); the other keys keep
             their (profile) defaults.
         bounds: ``{"copters.n": (1, 4), ...}``: narrower ranges for number keys (each inside the declared range;
-            a list key's numbers each). A key whose default lies outside its bounds is always drawn (also when its
-            section is not in ``sections``); one whose default lies inside is drawn like any other key of
-            ``sections`` (and shrinks to its default).
+            a list key's numbers each), drawn also when their section is not in ``sections``: always when the
+            default lies outside the bounds, else like any other key (shrinking to its default).
         fixed: ``{"behaviour.kind": "hover", ...}``: keys set to these values (checked by the config itself).
         profiles: profiles to draw from (default: every one in :data:`~finkensim.config.PROFILES`).
         max_flight_bytes: the arrays of one recorded flight (:func:`finkensim.budget.flight_arrays`) stay below
@@ -245,7 +244,7 @@ def configs(draw, sections: Iterable[str] | None = None, *, bounds: Mapping[str,
         return dotted in bounds and not _within(base.get(dotted), bounds[dotted])
 
     keys = [f"{sec}.{key}" for sec in names for key in _fields(sec)]
-    keys += [k for k in bounds if k not in keys and violates(k)]
+    keys += [k for k in bounds if k not in keys]
     for dotted in keys:
         if dotted in fixed:
             continue
@@ -270,8 +269,13 @@ def scenarios(draw, *, max_copters: int = 6, max_steps: int = 40, sections: Iter
     most ``max_copters`` copters and 1 to ``max_steps`` steps (``simulation.duration`` = steps x
     ``simulation.dt`` unless fixed), so a flight takes milliseconds once compiled. ``bounds`` and ``fixed``
     refine further (as in :func:`configs`)."""
-    merged = dict(SCENARIO_BOUNDS)
-    merged["copters.n"] = (1, int(max_copters))
+    sections = tuple(sections)
+    merged = {}
+    for dotted, pair in {**SCENARIO_BOUNDS, "copters.n": (1, int(max_copters))}.items():
+        section, key = dotted.split(".")
+        default = _fields(section)[key].default
+        if section in sections or not _within(default, pair):  # keys of other sections stay at their defaults
+            merged[dotted] = pair
     merged.update(bounds or {})
     fixed = dict(fixed or {})
     cfg = draw(configs(sections, bounds=merged, fixed=fixed, profiles=profiles))
