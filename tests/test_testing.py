@@ -60,6 +60,18 @@ def test_configs_respect_bounds_fixed_and_sections(data):
     assert cfg.sonar == Config().sonar  # a section not drawn keeps its defaults
 
 
+def test_configs_shrink_to_the_default_plus_what_matters():
+    from hypothesis import find
+
+    found = find(fst.configs(), lambda c: c.copters.n >= 10, settings=settings(database=None))
+    assert found.copters.n == 10 and found.replace({"copters.n": 6}) == Config()  # nothing else left changed
+
+
+def test_flight_logs_shrink_to_one_sample_of_one_copter():
+    log = _one(fst.flight_logs(sensors=["ultrasonic", "ranging"]))
+    assert (log.n_steps, log.n_copters) == (1, 1) and not np.isnan(log.ultrasonic).any()
+
+
 def test_config_strategy_arguments_are_checked():
     with pytest.raises(ValueError, match=r"bounds\['copters.n'\] = \(0, 5\): expected a range inside the declared >= 1"):
         _one(fst.configs(bounds={"copters.n": (0, 5)}))
