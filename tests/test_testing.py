@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from finkensim.checkfiles import check_file
 from finkensim.config import SECTIONS, Config, load_config
-from finkensim.flightlog import load, save, validate
+from finkensim.flightlog import FlightLogError, load, save, validate
 from finkensim.testing import (assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible)
 from finkensim.testing import strategies as fst
 from finkensim.testing.profiles import PROFILE_ENV, THOROUGH_FACTOR, current_profile, examples, load_profile
@@ -308,3 +308,35 @@ def test_import_needs_neither_pytest_nor_hypothesis_until_strategies_are_used():
     code = ("import sys, finkensim.testing as t; assert 'pytest' not in sys.modules and 'hypothesis' not in "
             "sys.modules; from finkensim.testing import strategies; assert 'pytest' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# ------------------------------------------------------------------------------------------ found by the strategies
+# Valid configs the package mishandles (docs/testing.md, "Found by these strategies"). Strict xfails: once fixed
+# where they live, these pass, fail as XPASS, and should become plain tests of the clear error or of the fix.
+
+
+@pytest.mark.xfail(strict=True, raises=IndexError, reason="subnormal ranging.max_range breaks the ranging table build")
+def test_found_a_subnormal_ranging_range_gives_a_clear_error():
+    from finkensim.config import ConfigError
+    from finkensim.swarm import SwarmSim
+
+    with pytest.raises(ConfigError, match="ranging.max_range"):
+        SwarmSim(Config().replace({"ranging.max_range": 5e-324}))
+
+
+@pytest.mark.xfail(strict=True, raises=OverflowError, reason="duration / dt beyond the float range overflows")
+def test_found_an_overflowing_step_count_gives_a_clear_error():
+    from finkensim.budget import flight_arrays
+    from finkensim.config import ConfigError
+
+    with pytest.raises(ConfigError, match="simulation"):
+        flight_arrays(Config().replace({"simulation.dt": 1e-308, "simulation.duration": 1e6}))
+
+
+@pytest.mark.xfail(strict=True, raises=FlightLogError, reason="IMU noise the config allows reads as cm/s^2 in the log")
+def test_found_a_flight_with_allowed_imu_noise_passes_the_loader():
+    from finkensim.scenario import simulate_flight
+
+    cfg = Config().replace({"copters.n": 1, "imu.acc_noise_density": 60.0, "simulation.dt": 0.125})
+    log, _, _ = simulate_flight(cfg, duration=2.0, seed=0)
+    assert_flightlog_valid(log)
