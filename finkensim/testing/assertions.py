@@ -9,6 +9,7 @@ columns, such as yaw, are ignored).
 """
 from __future__ import annotations
 
+import os
 from typing import Any, Iterable
 
 import numpy as np
@@ -158,7 +159,8 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
        to a lone run, reversed environment order) for ``n_steps`` steps.
     2. With more than one of ``executors`` (from :data:`finkensim.sweep.executors.EXECUTORS`) and a configuration
        as ``target``: the same episodes (seeds ``seed``, ``seed + 1``; ``n_steps`` steps) run by each executor, as a
-       sweep runs them, give bit-identical metrics.
+       sweep runs them, give bit-identical metrics. Serial episodes run on this process's numba threads, pool
+       workers on one thread each, so this also compares thread counts.
 
     Args:
         target: a Config (or anything :func:`~finkensim.config.load_config` takes), a SwarmSim, or a World (with
@@ -173,7 +175,7 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
         raise AssertionError(f"not reproducible across repeats and batch sizes (seed {seed}, {n_envs} "
                              f"environments, {n_steps} steps): {exc}") from None
     executors = list(executors)
-    if len(executors) < 2 or not (isinstance(target, Config) or isinstance(target, (str, dict)) or target is None):
+    if len(executors) < 2 or not (target is None or isinstance(target, (Config, str, dict, os.PathLike))):
         return
     from ..metrics import METRICS
     from ..sweep import executors as ex

@@ -59,7 +59,7 @@ def _times(draw, T: int, conventions: bool) -> np.ndarray:
 @st.composite
 def flight_logs(draw, *, n_steps=(1, 8), n_copters=(1, 4), sensors: Iterable[str] | None = None, n_sonars=None,
                 missing: bool = True, conventions: bool = False, heights: bool = False, arena=None):
-    """Valid :class:`~finkensim.flight.FlightLog` objects (``spec/flightlog.md``): :func:`~finkensim.flightlog.validate`,
+    """Valid :class:`~finkensim.flightlog.FlightLog` objects (``spec/flightlog.md``): :func:`~finkensim.flightlog.validate`,
     :func:`~finkensim.flightlog.save` and :func:`~finkensim.flightlog.load` accept them.
 
     Args:
