@@ -221,6 +221,7 @@ class LogConfig(_Section):
                                    "meta.tracking_sigma_yaw")
 
 
+#: Config section name → its dataclass (``register_section`` adds more).
 SECTIONS: dict[str, type] = {
     "arena": ArenaConfig,
     "walls": WallConfig,
@@ -234,6 +235,7 @@ SECTIONS: dict[str, type] = {
     "log": LogConfig,
 }
 
+#: Profile name → section → the values that differ from the defaults.
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
     # The original V-REP report, as described (DESIGN.md): 40 kg plates saturate the hinge motor.

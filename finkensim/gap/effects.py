@@ -126,6 +126,7 @@ class Effect:
         return {p.name: (p.lo if p.lo >= 0 else 0.0) for p in self.params}
 
 
+#: The catalogue: effect name → :class:`Effect` (:func:`register` adds or replaces one).
 REGISTRY: dict[str, Effect] = {}
 
 #: a fitted value within this share of its range from a bound sits at the bound
