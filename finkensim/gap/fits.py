@@ -189,4 +189,24 @@ def _fit_bulge(diag: "Diagnosis", effect, current, vals):
     return nelder_mead(f, v, group, [v[q.name] for q in group], scores[i], maxfev=60)
 
 
-CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
+#: hold periods tried by :func:`_fit_update_rate`, in log samples
+HOLD_PERIODS = (2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
+
+
+def _fit_update_rate(diag: "Diagnosis", effect, current, vals):
+    """Sample-and-hold: periods of :data:`HOLD_PERIODS` log samples (the rates within the bounds) × phases 0 and ½ of a
+    period, then a Nelder–Mead over rate and phase from the best. The score is a step function of both
+    (which samples measure), so the grid finds the step and the simplex its edges."""
+    dt = min(f.dt for f in diag.flights)
+    rate, phase = effect.params
+    f = lambda v: diag._objective(effect, current, ["ultrasonic"], v)  # noqa: E731
+    cands = [dict(vals)] + [{rate.name: 1.0 / (p * dt), phase.name: ph} for p in HOLD_PERIODS
+                            if rate.lo <= 1.0 / (p * dt) <= rate.hi for ph in (0.0, 0.5)]
+    scores = [f(c) for c in cands]
+    i = int(np.argmin(scores))
+    if cands[i][rate.name] <= 0:
+        return cands[i]
+    return nelder_mead(f, cands[i], [rate, phase], [cands[i][rate.name], cands[i][phase.name]], scores[i], maxfev=20)
+
+
+CUSTOM_FITS = {"sonar_update_rate": _fit_update_rate, "imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

@@ -76,6 +76,8 @@ class SonarModel(NamedTuple):
     the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
     converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
+    update_hz (``sonar.update_hz``; 0 = every step) and update_phase s: the sample-and-hold of the readings
+    (:mod:`finkensim.sensors.sonar_hold`; the simulator measures from t = 0, the diagnosis fits the phase).
     """
 
     mount_yaw: np.ndarray
@@ -101,6 +103,8 @@ class SonarModel(NamedTuple):
     range_scale: float = 1.0
     bias: float = 0.0
     crosstalk_hear_probability: float = 1.0
+    update_hz: float = 0.0
+    update_phase: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: Config | SonarConfig, radius: float | None = None,
@@ -140,6 +144,7 @@ class SonarModel(NamedTuple):
             altitude=float(altitude),
             enabled=bool(sc.enabled),
             down_enabled=bool(sc.down_enabled),
+            update_hz=float(sc.update_hz),
         ).with_beam(h if sc.beam == "cone" else 0.0, sc.beam_rays)
 
     @property
