@@ -64,10 +64,24 @@ def test_real_log_reads_with_its_embedded_protocol_and_with_the_given_messages_x
     np.testing.assert_allclose(pp.sonar_yaw, np.radians([0, -90, 90, 180]))
     r = pp.readings
     sonar = r[r.channel.str.startswith("ultrasonic/")].value.to_numpy()
-    assert sonar.size == 4 * 15907
+    assert sonar.size == 4 * (15907 - 1)                         # one line sent twice is kept once
     assert math.isclose(sonar.min(), 0.21) and math.isclose(sonar.max(), 2.99)  # 21-299 cm, read in m
     given = read_paparazzi(real / f"{STEM}.data.gz", messages=real / "finken_messages.xml")
     pd.testing.assert_frame_equal(given.readings, r)
+
+
+def test_real_log_bursts_are_kept_once_or_counted(real):
+    from finkensim.importing import check_recording
+
+    pp = read_paparazzi(real / f"{STEM}.data.gz")
+    # line 15637 repeats line 15636 (348.110 s); line 15639 is another message stamped 348.110 s
+    assert list(pp.notes["repeated lines (identical to the previous one of the aircraft and message, kept once)"]
+                .values()) == [1]
+    t = np.arange(0.0, 990.0, 0.01)
+    tracking = pd.DataFrame({"t": t, "copter": "FINken3_01", "x": 2.0, "y": 1.5, "yaw": 0.0})
+    rec = pp.recording(tracking)
+    assert rec.notes["same time as a later message of the channel (not used)"] == 7   # 4 sonars + 3 IMU channels
+    assert check_recording(rec).rd_t.size == 7 * (15907 - 1 - 1)
 
 
 def test_real_log_is_sensor_only_and_build_flight_says_what_to_add(real):

@@ -94,3 +94,23 @@ def test_python_step_and_controlled_step_hold_like_the_compiled_rollout(held_fli
     u = held_steps(np.arange(13), cfg.simulation.dt, 8.0, 0.0)
     seen = np.array(seen)
     np.testing.assert_array_equal(seen, seen[u])
+
+
+def test_hold_rhythms_find_the_rate_and_phase_of_a_simulated_hold(held_flight):
+    from types import SimpleNamespace
+
+    from finkensim.gap.fits import hold_rhythms
+
+    cfg, log = held_flight                                  # 8 Hz, measuring from t = 0, at 100 Hz
+    found = hold_rhythms([SimpleNamespace(log=log, dt=cfg.simulation.dt)], 0.0, 50.0)
+    rate, phase, strength = found[0]
+    assert abs(rate - 8.0) < 0.25 / 3.0 and strength > 0.8   # within the grid's resolution (0.25 cycles / 3 s)
+    assert min(phase, 1 - phase) < 0.1                      # 0 periods, late by the rounding to samples
+    none, _, _ = simulated_without_hold()
+    assert hold_rhythms([SimpleNamespace(log=none, dt=0.01)], 0.0, 50.0)[0][2] < 0.4   # chance peaks only
+
+
+def simulated_without_hold():
+    import finkensim as fs
+
+    return fs.simulate_flight(fs.load_config({"simulation": {"dt": 0.01}, "copters": {"n": 3}}), duration=3.0, seed=2)

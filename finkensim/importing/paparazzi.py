@@ -10,8 +10,9 @@ A ``.data`` file has one message per line, ``time ac_id NAME field field ...`` (
 an array field is one comma-separated token). The field layout comes from the ``.log``'s embedded protocol, extended
 or overridden by a given ``messages.xml`` (:mod:`.paparazzi_protocol`); the map (:func:`~.paparazzi_protocol.read_map`,
 default: the FINken's) says which field is which finkensim channel and in which unit it is recorded; values are
-converted to SI units, nothing else is changed (held sonar values stay as the telemetry repeated them). Each
-``ac_id`` is one copter. Every line is checked, mapped or not: a line that is cut short, a message the protocol lacks,
+converted to SI units, nothing else is changed (held sonar values stay as the telemetry repeated them), except
+that a mapped line identical to the previous line of its aircraft and message (the same message twice, same time)
+is kept once, counted in the notes. Each ``ac_id`` is one copter. Every line is checked, mapped or not: a line that is cut short, a message the protocol lacks,
 a field count that disagrees with the layout, a time, ac_id or mapped value that is not a number — each is a
 :class:`~.recording.RecordingError` naming the file and line. Messages that are well formed but not mapped are
 counted in :attr:`PaparazziLog.notes` (``"not mapped"``), never silently dropped.
@@ -59,13 +60,19 @@ class PaparazziLog:
     def recording(self, tracking=None) -> Recording:
         """A :class:`~.recording.Recording` of the flight-log channels, with ``tracking`` (a DataFrame with
         columns t, copter, x, y, yaw, e.g. ``read_csv("track.csv").tracking``) or without it (sensor-only: it can be
-        checked and analysed, but :func:`~.align.build_flight` refuses it, as a flight log needs poses)."""
+        checked and analysed, but :func:`~.align.build_flight` refuses it, as a flight log needs poses). Where the
+        logger stamped two different messages of a channel with one time (a burst), the later one is used and the
+        others are counted in the notes (a stream's times must increase)."""
         import pandas as pd
 
         from .paparazzi_protocol import ANALYSIS_CHANNELS
 
-        rd = self.readings[~self.readings["channel"].isin(list(ANALYSIS_CHANNELS))].reset_index(drop=True)
+        rd = self.readings[~self.readings["channel"].isin(list(ANALYSIS_CHANNELS))]
+        keep = ~rd.duplicated(subset=["copter", "channel", "t"], keep="last")
+        rd = rd[keep].reset_index(drop=True)
         notes = dict(self.notes)
+        if not keep.all():  # the logger stamped two different messages with one time: the later one is used
+            notes["same time as a later message of the channel (not used)"] = int((~keep).sum())
         if tracking is None:
             tracking = pd.DataFrame({c: pd.Series([], dtype=object if c == "copter" else float)
                                      for c in TRACKING_COLUMNS})
@@ -126,7 +133,8 @@ def read_paparazzi(data, *, log=None, messages=None, map=DEFAULT_MAP) -> Paparaz
     mapped = {m: [(e, layouts[m].index(e.field, pmap.source)) for e in es] for m, es in pmap.by_message().items()}
     lines = text.split("\n")
     ends_cut = not text.endswith("\n")
-    counts, blank = {}, 0
+    counts, blank, repeated = {}, 0, {}
+    last = {}  # (ac_id, message) -> the fields of its previous line, with its time
     cols = {}  # (ac_id, channel) -> ([t], [value])
     for i, line in enumerate(lines, start=1):
         tok = line.split()
@@ -151,6 +159,11 @@ def read_paparazzi(data, *, log=None, messages=None, map=DEFAULT_MAP) -> Paparaz
             raise RecordingError(f"{where}: message {name!r} has {n} field(s){how}; the protocol ({proto.source}) "
                                  f"gives it {len(msg.fields)}: {', '.join(f.name for f in msg.fields)}")
         counts[name] = counts.get(name, 0) + 1
+        if name in mapped:
+            if last.get((ac, name)) == tok:  # the same message again at the same time: sent twice, kept once
+                repeated[name] = repeated.get(name, 0) + 1
+                continue
+            last[(ac, name)] = tok
         for e, k in mapped.get(name, ()):
             v = _number(tok[3 + k], f"field {e.field!r}", where)
             ts, vs = cols.setdefault((ac, e.channel), ([], []))
@@ -172,6 +185,7 @@ def read_paparazzi(data, *, log=None, messages=None, map=DEFAULT_MAP) -> Paparaz
              "not mapped": {m: c for m, c in counts.items() if m not in mapped},
              "units": {e.channel: f"{e.field} in {e.unit}" + (" (sign flipped)" if e.factor < 0 else "")
                        for e in pmap.entries},
-             "aircraft": copter, "protocol": proto.source, "map": pmap.source, "blank_lines": blank}
+             "aircraft": copter, "protocol": proto.source, "map": pmap.source, "blank_lines": blank,
+             "repeated lines (identical to the previous one of the aircraft and message, kept once)": repeated}
     src = path.name + (f"+{Path(messages).name}" if messages is not None else "")
     return PaparazziLog(readings, [copter[a] for a in ac_ids], ac_ids, pmap.sonar_yaw(), src, notes)
