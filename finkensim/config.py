@@ -244,7 +244,7 @@ class SonarConfig(_Section):
     beam_rays: int = _f(7, "", 1, 1001, doc="rays across the cone when beam = 'cone'")
     down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
     update_hz: float = _f(0.0, "Hz", 0.0, 1000.0,
-                          doc="sonar measurements per second, each held until the next (sample-and-hold); 0 = a new "
+                          doc="horizontal-sonar measurements per second, each held until the next (sample-and-hold); 0 = a new "
                               "measurement at every simulation step (the FINken's 2015 log shows no hold at its 36 Hz "
                               "telemetry while airborne: docs/real-finken.md)")
 
