@@ -90,6 +90,17 @@ def test_real_log_is_sensor_only_and_build_flight_says_what_to_add(real):
         build_flight(rec, (4, 3), sonar_yaw=np.radians([0, -90, 90, 180]), sonar_offset=0.1)
 
 
+def test_cli_reads_the_real_log_with_the_given_layout_and_asks_for_tracking(real, tmp_path, capsys):
+    from finkensim.cli import main
+
+    rc = main(["import", "--paparazzi", str(real / f"{STEM}.data.gz"), "--messages", str(real / "finken_messages.xml"),
+               "--arena", "4,3", "--sonar-offset", "0.1", "--out", str(tmp_path / "f.npz")])
+    out, err = capsys.readouterr()
+    assert rc == 2 and not (tmp_path / "f.npz").exists()
+    assert "read FINken3_01 ultrasonic/3: 15906 readings" in out and "0.21 to 2.99" in out
+    assert "sensor-only recording" in err and "--tracking TRACK.csv" in err
+
+
 # ---------------------------------------------------------------------------------------- round trip
 
 @pytest.fixture(scope="module")

@@ -88,6 +88,8 @@ def _floats(flag, text, n=None):
 
 def _paparazzi(args):
     """(recording, sonar yaw from the map) of --paparazzi with the --tracking CSV (or sensor-only without it)."""
+    import numpy as np
+
     from .csvtables import read_csv
     from .paparazzi import read_paparazzi
     from .paparazzi_protocol import DEFAULT_MAP
@@ -96,6 +98,12 @@ def _paparazzi(args):
         raise _Usage("give --paparazzi (with --tracking) or --bag or --tracking/--readings, not several")
     pp = read_paparazzi(args.paparazzi, messages=args.messages,
                         map=Path(args.paparazzi_map) if args.paparazzi_map else DEFAULT_MAP)
+    if args.tracking is None:  # sensor-only: say what was read before build_flight says what is missing
+        for (copter, channel), g in pp.readings.groupby(["copter", "channel"], sort=False):
+            t, v = g["t"].to_numpy(), g["value"].to_numpy()
+            step = float(np.median(np.diff(t))) if t.size > 1 else float("nan")
+            print(f"  read {copter} {channel}: {t.size} readings over {t[-1] - t[0]:.1f} s, median interval "
+                  f"{1000 * step:.3g} ms, {v.min():.4g} to {v.max():.4g} ({pp.notes['units'][channel]}; in SI units)")
     tracking = read_csv(args.tracking).tracking if args.tracking is not None else None
     return pp.recording(tracking), pp.sonar_yaw
 
