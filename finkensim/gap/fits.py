@@ -189,15 +189,34 @@ def _fit_bulge(diag: "Diagnosis", effect, current, vals):
     return nelder_mead(f, v, group, [v[q.name] for q in group], scores[i], maxfev=60)
 
 
+#: s of each flight's start searched on the full rate grid by :func:`hold_rhythms` (then refined on all of it)
+RHYTHM_WINDOW = 120.0
+
+
+def _coherence(rates, times):
+    """(strength (R,), mean direction (R,) complex): over flights, |Σ exp(2πi·rate·t)| / count and the flights' unit
+    sums; ``times`` a list of (n_f,) arrays of change times (s)."""
+    total = np.zeros(rates.size, dtype=np.complex128)
+    strength = np.zeros(rates.size)
+    for tt in times:
+        acc = np.zeros(rates.size, dtype=np.complex128)
+        for chunk in np.array_split(tt, max(1, tt.size // 256)):
+            acc += np.exp(2j * np.pi * np.outer(rates, chunk)).sum(axis=1)
+        strength += np.abs(acc) / tt.size / len(times)
+        total += acc / np.maximum(np.abs(acc), 1e-300)
+    return strength, total
+
+
 def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 0.25):
     """The ``n`` strongest sample-and-hold rhythms in the sonar readings: [(rate Hz, phase in periods, strength)].
 
     A held sonar changes its reading only at measuring samples, so the times of the changes (a sample whose reading
-    differs from the previous sample's, any copter and sonar) line up with a period 1/rate: for every rate on a grid
-    fine enough to stay in phase over the longest flight (``resolution`` cycles over its length), the strength is the
-    mean over flights of |Σ exp(2πi·rate·t)| / count over the changes' times t (1: every change on one rhythm; the
+    differs from the previous sample's, any copter and sonar) line up with a period 1/rate: the strength of a rate is
+    the mean over flights of |Σ exp(2πi·rate·t)| / count over the changes' times t (1: every change on one rhythm; the
     harmonics of a true rate are smeared by the changes' rounding to samples; rates at or above 2/3 of the log rate
-    are not held at all and are not searched). The phase is the mean direction of the flights' sums.
+    are not held at all and are not searched). The rate grid stays in phase to ``resolution`` cycles over the first
+    :data:`RHYTHM_WINDOW` s of the flights; on longer flights each of the best rates is refined on all their changes.
+    The phase is the mean direction of the flights' sums.
     """
     times, longest, fastest = [], 0.0, math.inf
     for fl in flights:
@@ -214,19 +233,20 @@ def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 
     hi = min(hi, fastest / 1.5)
     if not times or hi <= max(lo, 0.5):
         return []
-    rates = np.arange(max(lo, 0.5), hi, resolution / longest)
-    total = np.zeros(rates.size, dtype=np.complex128)
-    strength = np.zeros(rates.size)
-    for tt in times:
-        acc = np.zeros(rates.size, dtype=np.complex128)
-        for chunk in np.array_split(tt, max(1, tt.size // 256)):
-            acc += np.exp(2j * np.pi * np.outer(rates, chunk)).sum(axis=1)
-        strength += np.abs(acc) / tt.size / len(times)
-        total += acc / np.maximum(np.abs(acc), 1e-300)
+    window = min(longest, RHYTHM_WINDOW)
+    rates = np.arange(max(lo, 0.5), hi, resolution / window)
+    strength, total = _coherence(rates, [t[t < window] for t in times if (t < window).sum() >= 10] or times)
     out = []
     for i in np.argsort(-strength):
-        if all(abs(rates[i] - r) > 2 * resolution / longest for r, _, _ in out):
-            out.append((float(rates[i]), float((np.angle(total[i]) / (2 * np.pi)) % 1.0), float(strength[i])))
+        if all(abs(rates[i] - r) > 2 * resolution / window for r, _, _ in out):
+            r, z, st = float(rates[i]), total[i], float(strength[i])
+            if longest > window:  # refine on every change: a grid in phase over the longest flight
+                step = resolution / window
+                fine = r + np.arange(-step, step + 1e-12, resolution / longest)
+                fs, ft = _coherence(fine, times)
+                j = int(np.argmax(fs))
+                r, z, st = float(fine[j]), ft[j], float(fs[j])
+            out.append((r, float((np.angle(z) / (2 * np.pi)) % 1.0), st))
         if len(out) == n:
             break
     return out
