@@ -13,14 +13,14 @@ from finkensim.sensors.sonar_hold import EPS_STEPS, held_step, held_steps, hold_
 
 
 def held_reference(k, dt, hz, phase):
-    """NumPy reference: list every measurement instant phase + m/hz up to step k's time, take the last, and the
-    first step at or after it (instants before t = 0 are taken at step 0)."""
+    """NumPy reference: list every measurement instant phase + m/hz near steps 0..k, the step each is taken at (the
+    first at or after it, with the same rounding allowance; instants before t = 0 at step 0), and take the latest
+    of those steps at or before k."""
     if hz <= 0:
         return k
     m = np.arange(math.floor(-phase * hz) - 2, math.ceil((k * dt - phase) * hz) + 3)
-    tau = phase + m / hz
-    tau = tau[tau * hz <= k * dt * hz + EPS_STEPS]          # at or before step k (same rounding allowance)
-    return int(min(k, max(0, math.ceil(tau.max() / dt - EPS_STEPS))))
+    steps = np.maximum(np.ceil((phase + m / hz) / dt - EPS_STEPS), 0).astype(np.int64)
+    return int(steps[steps <= k].max())
 
 
 @settings(max_examples=300, deadline=None)

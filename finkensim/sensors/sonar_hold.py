@@ -25,21 +25,28 @@ EPS_STEPS = 1e-9
 
 
 @njit(cache=True, inline="always")
+def _measuring_step(m, dt, update_hz, phase):
+    """The step at which measurement m (at t = phase + m / update_hz s) is taken: the first at or after it."""
+    return math.ceil((phase + m / update_hz) / dt - EPS_STEPS)
+
+
+@njit(cache=True, inline="always")
 def held_step(k, dt, update_hz, phase):
-    """The step (int, 0 ≤ result ≤ k) whose measurement a sample-and-hold sonar shows at step ``k``.
+    """The step (int, 0 ≤ result ≤ k) whose measurement a sample-and-hold sonar shows at step ``k``: the latest
+    measuring step at or before k (measurements before t = 0 count as taken at step 0).
 
     Args: k step index; dt s per step; update_hz measurements per second (≤ 0: every step, returns k); phase s,
     the first measurement instant (any real number: only its value modulo the period matters).
     """
     if update_hz <= 0.0:
         return k
-    m = math.floor((k * dt - phase) * update_hz + EPS_STEPS)   # the last measurement instant at or before step k
-    u = math.ceil((phase + m / update_hz) / dt - EPS_STEPS)    # ... taken at the first step at or after it
-    if u < 0:
-        return 0
-    if u > k:
-        return k
-    return u
+    m = math.floor((k * dt - phase) * update_hz)            # about the last measurement at or before step k
+    while _measuring_step(m, dt, update_hz, phase) > k:     # rounding: step back or on, by the step rule itself
+        m -= 1
+    while _measuring_step(m + 1, dt, update_hz, phase) <= k:
+        m += 1
+    u = _measuring_step(m, dt, update_hz, phase)
+    return u if u > 0 else 0
 
 
 @njit(cache=True)
