@@ -30,6 +30,19 @@ def test_held_step_matches_the_numpy_reference(k, dt, hz, phase):
     assert held_step(k, dt, hz, phase) == held_reference(k, dt, hz, phase)
 
 
+@settings(max_examples=200, deadline=None)
+@given(k=st.integers(0, 10**6), dt=st.floats(1e-4, 1.0), hz=st.floats(1e-300, 1000.0), phase=st.floats(0.0, 3600.0))
+def test_held_step_ends_over_the_configs_whole_range(k, dt, hz, phase):
+    """Any sonar.update_hz in (0, 1000] and update_phase in [0, 3600] s the config accepts: a step in [0, k] (a slow
+    rate's next measurement lies beyond any integer step; it once overflowed and the search never ended)."""
+    u = held_step(k, dt, hz, phase)
+    assert 0 <= u <= k
+    if phase + 1.0 / hz > (k + 1) * dt and phase - 1.0 / hz <= 0.0:
+        # one measurement in the flight (at the phase) after one before t = 0 (held from step 0)
+        first = math.ceil(phase / dt - EPS_STEPS)
+        assert u == (first if first <= k else 0)
+
+
 @settings(max_examples=50, deadline=None)
 @given(dt=st.sampled_from([0.01, 1 / 36, 0.04]), hz=st.floats(1.0, 20.0), phase=st.floats(0.0, 1.0))
 def test_held_steps_are_past_nondecreasing_and_measure_at_the_rate(dt, hz, phase):

@@ -26,8 +26,10 @@ EPS_STEPS = 1e-9
 
 @njit(cache=True, inline="always")
 def _measuring_step(m, dt, update_hz, phase):
-    """The step at which measurement m (at t = phase + m / update_hz s) is taken: the first at or after it."""
-    return math.ceil((phase + m / update_hz) / dt - EPS_STEPS)
+    """The step at which measurement m (at t = phase + m / update_hz s) is taken: the first at or after it, as a
+    float (a slow rate puts measurement m ± 1 beyond any int64 step: ±inf compares correctly, an overflowed integer
+    made the search below loop for ever)."""
+    return np.ceil((phase + m / update_hz) / dt - EPS_STEPS)
 
 
 @njit(cache=True, inline="always")
@@ -46,7 +48,7 @@ def held_step(k, dt, update_hz, phase):
     while _measuring_step(m + 1, dt, update_hz, phase) <= k:
         m += 1
     u = _measuring_step(m, dt, update_hz, phase)
-    return u if u > 0 else 0
+    return np.int64(u) if u > 0 else 0
 
 
 @njit(cache=True)
