@@ -157,8 +157,9 @@ class SonarConfig(_Section):
                           doc="horizontal-sonar measurements per second, each held until the next (sample-and-hold); 0 = a new "
                               "measurement at every simulation step (the FINken's 2015 log shows no hold at its 36 Hz "
                               "telemetry while airborne: docs/real-finken.md)")
-    update_phase: float = _f(0.0, "s", 0.0, 3600.0, doc="time of the first horizontal-sonar measurement after t = 0 "
-                             "with update_hz > 0 (the sonar_update_rate effect fits it)")
+    update_phase: float = _f(0.0, "s", 0.0, None, doc="time of the first horizontal-sonar measurement after t = 0 "
+                             "with update_hz > 0 (the sonar_update_rate effect fits it; a slow rate's may lie far "
+                             "beyond the flight)")
 
 
 @dataclass(frozen=True)

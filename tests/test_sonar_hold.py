@@ -31,9 +31,9 @@ def test_held_step_matches_the_numpy_reference(k, dt, hz, phase):
 
 
 @settings(max_examples=200, deadline=None)
-@given(k=st.integers(0, 10**6), dt=st.floats(1e-4, 1.0), hz=st.floats(1e-300, 1000.0), phase=st.floats(0.0, 3600.0))
+@given(k=st.integers(0, 10**6), dt=st.floats(1e-4, 1.0), hz=st.floats(1e-300, 1000.0), phase=st.floats(0.0, 1e300))
 def test_held_step_ends_over_the_configs_whole_range(k, dt, hz, phase):
-    """Any sonar.update_hz in (0, 1000] and update_phase in [0, 3600] s the config accepts: a step in [0, k] (a slow
+    """Any sonar.update_hz in (0, 1000] and update_phase >= 0 s the config accepts: a step in [0, k] (a slow
     rate's next measurement lies beyond any integer step; it once overflowed and the search never ended)."""
     u = held_step(k, dt, hz, phase)
     assert 0 <= u <= k

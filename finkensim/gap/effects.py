@@ -279,9 +279,16 @@ register(Effect(
     calibrate=lambda v, cfg: {"sonar.range_scale": cfg.sonar.range_scale * v["factor"]}))
 
 
-def _update_rate(base: ModelParams, v: dict) -> ModelParams:
+def _update_phase_seconds(v: dict) -> float:
+    """The first measurement instant (s) of ``sonar_update_rate``'s values: ``phase`` periods (0 where a rate so
+    slow that its period overflows makes it infinite)."""
     hz = float(v["rate_hz"])
-    return base.with_sonar(update_hz=hz, update_phase=float(v["phase"]) / hz if hz > 0 else 0.0)
+    seconds = float(v["phase"]) / hz if hz > 0 else 0.0
+    return seconds if math.isfinite(seconds) else 0.0
+
+
+def _update_rate(base: ModelParams, v: dict) -> ModelParams:
+    return base.with_sonar(update_hz=float(v["rate_hz"]), update_phase=_update_phase_seconds(v))
 
 
 register(Effect(
@@ -292,8 +299,7 @@ register(Effect(
         "the world up to one period earlier, in a sawtooth",
     initial=lambda b: {"rate_hz": b.sonar.update_hz, "phase": b.sonar.update_phase * b.sonar.update_hz},
     expected_features=("range_rate", "speed"),
-    calibrate=lambda v, cfg: {"sonar.update_hz": float(v["rate_hz"]),
-                              "sonar.update_phase": float(v["phase"]) / float(v["rate_hz"]) if v["rate_hz"] > 0 else 0.0}))
+    calibrate=lambda v, cfg: {"sonar.update_hz": float(v["rate_hz"]), "sonar.update_phase": _update_phase_seconds(v)}))
 register(Effect(
     "latency", ("ultrasonic", "ranging", "imu"),
     (Param("ultrasonic", -0.5, 1.0, unit="s"), Param("ranging", -0.5, 1.0, unit="s"),

@@ -42,6 +42,11 @@ def held_step(k, dt, update_hz, phase):
     """
     if update_hz <= 0.0:
         return k
+    period = 1.0 / update_hz
+    if phase < 0.0 or phase >= period:
+        # only the phase modulo the period matters; far from [0, period) the count m below would be too large for
+        # a float to step by one (a phase of 1e300 s looped for ever)
+        phase = phase % period
     m = math.floor((k * dt - phase) * update_hz)            # about the last measurement at or before step k
     while _measuring_step(m, dt, update_hz, phase) > k:     # rounding: step back or on, by the step rule itself
         m -= 1
