@@ -255,7 +255,10 @@ def _add_gap(sub) -> None:
                     "which catalogued effect explains it and how far the gap shrinks on held-out flights. Writes "
                     "DIR/report.json (spec/gap-report.md), DIR/report.md and figures.")
     p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (spec/flightlog.md)")
-    p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
+    p.add_argument("--config", default=None, metavar="sim.toml",
+                   help="simulator config (error models, walls, [gap]); default: finkensim's default config "
+                        "(finkensim.config defaults, not the built-in `run` scenario); the geometry (arena, "
+                        "copters, sonar mounting, copter radius) and the times always come from each log")
     p.add_argument("--out", default="out/gap", metavar="DIR", help="output directory (default: %(default)s)")
     p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
                    help="held-out flights by file name (default: every other flight; one flight: its second half)")
@@ -273,11 +276,17 @@ def cmd_gap(args) -> int:
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     from .config import ConfigError, load_config
     from .flightlog import FlightLogError, load
-    from .gap import Diagnosis, run_diagnosis
+    from .gap import Diagnosis, check_effects, check_heldout, run_diagnosis
     from .gap.replay import GapInputError
 
     _use_agg()
     _output_dir(prog, args.out, create=False)
+    try:  # every argument is checked before any flight is read or replayed
+        check_heldout([Path(p).name for p in args.logs], args.heldout)
+        if args.effects is not None:
+            check_effects(args.effects)
+    except GapInputError as exc:
+        raise UsageError(prog, str(exc)) from None
     cfg = load_config(None)
     if args.config is not None:
         cfg = _load_scenario_arg(prog, args.config)
