@@ -29,6 +29,7 @@ from . import __version__
 from .cliargs import UsageError
 from .cliargs import load_scenario_arg as _load_scenario_arg
 from .cliargs import one_line as _one_line
+from .cliargs import require_flight_log as _require_flight_log
 from .cliargs import output_dir as _output_dir
 from .cliargs import use_agg as _use_agg
 
@@ -290,6 +291,8 @@ def cmd_gap(args) -> int:
     cfg = load_config(None)
     if args.config is not None:
         cfg = _load_scenario_arg(prog, args.config)
+    for path in args.logs:
+        _require_flight_log(prog, path)  # a CSV, bag or TOML file: said so, with what to do
     logs, names = [], []
     for path in args.logs:
         try:
@@ -406,16 +409,30 @@ def _add_check(sub) -> None:
                        description="Read each file as the command using it would (flight logs .npz/.csv, scenario "
                                    "or sweep TOML), print a one-line summary of a good file and a named error for a "
                                    "bad one (exit code 2 if any file is bad). See finkensim.checkfiles.")
-    p.add_argument("files", nargs="+", metavar="FILE", help="flight logs (.npz, .csv), scenario or sweep TOML files")
-    p.add_argument("--arena", nargs=2, type=float, default=None, metavar=("W", "L"),
-                   help="arena width and length in m for .csv tracking files (default 3 4)")
+    p.add_argument("files", nargs="*", metavar="FILE",
+                   help="flight logs (.npz), tracking or readings CSV files, scenario, sweep, study or topics TOML "
+                        "files, bags (.bag, .mcap, ROS 2 bag folders)")
+    p.add_argument("--arena", nargs="+", default=None, metavar="W,L",
+                   help="arena width and length in m for .csv tracking files: 3,4 or 3 4, as in finkensim import "
+                        "(default 3,4)")
     p.set_defaults(func=cmd_check)
 
 
 def cmd_check(args) -> int:
     from .checkfiles import check_files
+    from .usertext import arena_size
 
-    return check_files(args.files, args.prog, arena=args.arena)
+    files, arena = list(args.files), None
+    if args.arena is not None:  # --arena takes W,L (one word) or W L (two): later words are files
+        n = 1 if "," in args.arena[0] else 2
+        files += args.arena[n:]
+        try:
+            arena = arena_size(args.arena[:n])
+        except ValueError as exc:
+            raise UsageError(args.prog, str(exc)) from None
+    if not files:
+        raise UsageError(args.prog, "the following arguments are required: FILE")
+    return check_files(files, args.prog, arena=arena)
 
 
 # ------------------------------------------------------------------------------------------
