@@ -9,7 +9,7 @@ SRC_HASH := $(shell cat $$(find finkensim -name '*.py' | sort) | sha1sum | cut -
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(SRC_HASH)
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test notebooks bench bench-peers clean venv
+.PHONY: demo test fuzz notebooks bench bench-peers clean venv
 
 venv: $(STAMP)
 
@@ -29,6 +29,13 @@ TEST_WORKERS ?= 2
 test: $(STAMP)
 	OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-passive} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal \
 		tests --nbmake notebooks
+
+# The full fuzz corpus (malformed inputs on every surface through the real command line; `make test` runs a fixed
+# bounded subset of it). One process, so that the counts per category it prints at the end are complete; they are
+# in docs/reliability.md.
+fuzz: $(STAMP)
+	FINKENSIM_FUZZ=full $(BIN)/python -m pytest -q -p no:xdist tests/test_fuzz_cli.py \
+		tests/test_fuzz_defects.py tests/test_fuzz_inputs.py
 
 # re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
 notebooks: $(STAMP)
