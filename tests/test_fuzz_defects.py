@@ -337,3 +337,74 @@ def test_tune_help_shows_one_percent_sign():
 
     r = _cli(["tune", "--help"], Path("."))
     assert r.returncode == 0 and "95% CIs" in " ".join(r.stdout.split()) and "%%" not in r.stdout
+
+
+# ------------------------------------------------------------------------------------------
+# item 10: Ctrl-C and SIGTERM end sweep and tune with one line
+# ------------------------------------------------------------------------------------------
+
+def _signal_when(args, cwd, ready, sig):
+    """Start ``finkensim ARGS`` in its own process group (as a terminal job), send ``sig`` to the whole group once
+    ``ready()`` is true; returns (exit code, stderr)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    p = subprocess.Popen([sys.executable, "-m", "finkensim.cli", *args], cwd=cwd, env=env, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 300
+        while not ready():
+            assert p.poll() is None and time.monotonic() < deadline, "ended or too slow before the signal"
+            time.sleep(0.3)
+        os.killpg(p.pid, sig)
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    return p.returncode, err
+
+
+@pytest.mark.parametrize("executor", ["process", "dask"])
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_interrupted_sweep_says_one_line(executor, sig, tmp_path):
+    import signal
+
+    if executor == "dask":
+        pytest.importorskip("distributed")
+    (tmp_path / "w.toml").write_text('replicates = 400\nduration = 5.0\n[grid]\n"copters.n" = [3]\n')
+    parts = tmp_path / "o" / "parts"
+    code, err = _signal_when(["sweep", "w.toml", "--out", "o", "--executor", executor, "--workers", "2",
+                              "--no-progress"], tmp_path, lambda: parts.is_dir() and any(parts.iterdir()),
+                             getattr(signal, sig))
+    assert code == (130 if sig == "SIGINT" else 143), err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_interrupted_tune_says_one_line(sig, tmp_path):
+    import signal
+    import sqlite3
+
+    pytest.importorskip("optuna")
+    (tmp_path / "s.toml").write_text(TINY_STUDY.format(n=500, low=1.0))
+    db = tmp_path / "o" / "study.db"
+
+    def one_done():
+        if not db.exists():
+            return False
+        try:
+            with sqlite3.connect(db) as con:
+                return con.execute("select count(*) from trials where state = 'COMPLETE'").fetchone()[0] >= 1
+        except sqlite3.Error:
+            return False
+
+    code, err = _signal_when(["tune", "s.toml", "--out", "o", "--no-progress", "--no-heldout", "--no-figures"],
+                             tmp_path, one_done, getattr(signal, sig))
+    assert code == (130 if sig == "SIGINT" else 143), err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err

@@ -16,12 +16,15 @@
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import socket
+import threading
 from typing import Any, Callable
 
-__all__ = ["fingerprint", "check_same_study", "requeue_interrupted", "mark_process", "reseeded_sampler", "finished_count",
+__all__ = ["InterruptGate", "fingerprint", "check_same_study", "requeue_interrupted", "mark_process", "reseeded_sampler", "finished_count",
            "INTERRUPTED", "REQUEUED_FROM", "FINGERPRINT"]
 
 INTERRUPTED = "interrupted"
@@ -156,3 +159,57 @@ def reseeded_sampler(make: Callable[[int], Any], seed: int):
             self._inner.reseed_rng()
 
     return ReseededSampler()
+
+
+class InterruptGate:
+    """Ctrl-C and SIGTERM stop a study only inside a trial's evaluation, never inside Optuna's own bookkeeping.
+
+    A signal that arrives while Optuna records a trial (its heartbeat thread, a storage transaction) would leave
+    a thread running or a trial half-told, and the process could hang at exit. Within ``with gate:`` a signal is
+    kept while Optuna works and raised as the previous handler would (KeyboardInterrupt; the CLI's SIGTERM
+    handler records the signal first) at once inside ``with gate.trial():`` or at the next :meth:`check`
+    (the start of the next evaluation, or the callback after a trial is told). Outside the main thread it
+    changes nothing."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        self._inside, self._pending, self._old = False, None, {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for name in self.SIGNALS:
+                sig = getattr(signal, name)
+                self._old[sig] = signal.signal(sig, self._on_signal)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        return False
+
+    def _on_signal(self, signum, frame):
+        self._pending = (signum, frame)
+        if self._inside:
+            self.check()
+
+    def check(self, *_args) -> None:
+        """Raise the kept signal (as its previous handler would), if one arrived."""
+        if self._pending is None:
+            return
+        signum, frame = self._pending
+        self._pending = None
+        old = self._old.get(signum)
+        if callable(old):
+            old(signum, frame)  # the CLI's SIGTERM handler records the signal and raises KeyboardInterrupt
+        raise KeyboardInterrupt
+
+    @contextlib.contextmanager
+    def trial(self):
+        """The evaluation of a trial: a signal interrupts it at once."""
+        self._inside = True
+        try:
+            self.check()
+            yield
+        finally:
+            self._inside = False

@@ -30,7 +30,7 @@ import numpy as np
 from ..atomic import write_atomic, write_text_atomic
 from ..config import ConfigError
 from .evaluate import compare, evaluate
-from .resume import INTERRUPTED, check_same_study, mark_process, requeue_interrupted, reseeded_sampler
+from .resume import INTERRUPTED, InterruptGate, check_same_study, mark_process, requeue_interrupted, reseeded_sampler
 from .storage import open_storage
 from .studyfile import StudySpec, parse_study
 
@@ -93,14 +93,15 @@ def _suggest(trial, spec: StudySpec) -> dict:
     return values
 
 
-def _objective(spec: StudySpec):
+def _objective(spec: StudySpec, gate: InterruptGate):
     metrics = [m for m, _ in spec.objectives]
 
     def objective(trial):
         mark_process(trial)
         values = _suggest(trial, spec)
         try:
-            m = evaluate(spec.config(values), spec.n_envs, spec.eval_seed, spec.duration, metrics)
+            with gate.trial():
+                m = evaluate(spec.config(values), spec.n_envs, spec.eval_seed, spec.duration, metrics)
         except KeyboardInterrupt:  # Ctrl-C or SIGTERM: FAIL, re-queued when the study resumes
             trial.set_user_attr(INTERRUPTED, True)
             raise
@@ -287,6 +288,7 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
             raise ConfigError(f"n_trials = {n_trials!r}: expected a positive integer")
         spec = replace(spec, n_trials=n_trials)
     out = Path(out)
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
     st, created = _prepare(spec, out, storage)
     if created:  # once, by the process that created the study
         _enqueue_defaults(st, spec)
@@ -300,7 +302,9 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
         if bar is not None:
             callbacks.append(lambda study, trial: bar.update(1))
         try:
-            st.optimize(_objective(spec), n_trials=todo, catch=(ConfigError,), callbacks=callbacks)
+            with InterruptGate() as gate:  # Ctrl-C / SIGTERM act inside a trial's evaluation, not in Optuna's records
+                st.optimize(_objective(spec, gate), n_trials=todo, catch=(ConfigError,),
+                            callbacks=[*callbacks, gate.check])
         finally:
             if bar is not None:
                 bar.close()
