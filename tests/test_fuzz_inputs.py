@@ -76,7 +76,7 @@ def bad_studies(draw):
     else:
         key = draw(st.sampled_from(["behaviour.ar_bb", "behaviours.ar_b", "copters.nn"]))
         parts["params"] = f'[params]\n"{key}" = {{ low = 1.0, high = 2.0 }}\n'
-        names = [key]
+        names = [key, f"[{key.split('.')[0]}]"]  # an unknown section is named as such
     order = ["n_trials", "duration", "params", "objectives", "evaluation", "base"]
     return "".join(parts[k] for k in order), names
 
@@ -149,7 +149,8 @@ def bad_imports(draw):
         args += ["--rate", "1e3", "--clock-offset", "0"]
         names = ["time base", "memory", "gap"]
     elif kind == "out":
-        return kind, files, args, draw(st.sampled_from(["/proc/x.npz", "track.csv/x.npz"])), ["--out"]
+        return kind, files, args + ["--clock-offset", "0"], draw(st.sampled_from(["/proc/x.npz", "track.csv/x.npz"])), \
+            ["--out"]
     elif kind == "clock":
         args += ["--clock-offset", draw(st.sampled_from(["soon", "inf", "nan"]))]
         names = ["clock"]

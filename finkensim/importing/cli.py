@@ -12,6 +12,7 @@ printed and written into the log's ``meta["import"]``.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -190,6 +191,8 @@ def _run(prog, args) -> int:
         raise _Usage(f"--out {args.out!r}: expected a file name for the flight log")
     if out.parent.exists() and not out.parent.is_dir():
         raise _Usage(f"--out {args.out!r}: {str(out.parent)!r} is a file, not a directory")
+    if out.parent.is_dir() and not os.access(out.parent, os.W_OK | os.X_OK):  # before any work
+        raise _Usage(f"--out {args.out!r}: the directory {str(out.parent)!r} is not writable")
     try:
         rec = _recording(args)
         log = build_flight(rec, arena=(W, L), sonar_yaw=yaw, sonar_offset=args.sonar_offset, copter_radius=radius,
