@@ -9,7 +9,7 @@ SRC_HASH := $(shell cat $$(find finkensim -name '*.py' | sort) | sha1sum | cut -
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(SRC_HASH)
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test docs screenshots notebooks bench bench-peers clean venv
+.PHONY: demo test fuzz docs screenshots notebooks bench bench-peers clean venv
 
 venv: $(STAMP)
 
@@ -42,6 +42,13 @@ docs: $(STAMP)
 screenshots: docs
 	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
 	$(BIN)/python docs/screenshots.py --browser chromium --site docs/_build/html --out docs/img
+
+# The full fuzz corpus (malformed inputs on every surface through the real command line; `make test` runs a fixed
+# bounded subset of it). One process, so that the counts per category it prints at the end are complete; they are
+# in docs/reliability.md.
+fuzz: $(STAMP)
+	FINKENSIM_FUZZ=full $(BIN)/python -m pytest -q -p no:xdist tests/test_fuzz_cli.py \
+		tests/test_fuzz_defects.py tests/test_fuzz_inputs.py
 
 # re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
 notebooks: $(STAMP)

@@ -23,7 +23,7 @@ from typing import Mapping
 from .config import Config, ConfigError
 
 __all__ = ["MEMORY_ENV", "MemoryBudgetError", "available_bytes", "format_bytes", "flight_arrays",
-           "episode_arrays", "gap_arrays", "check_memory", "flight_advice"]
+           "episode_arrays", "log_arrays", "sweep_objects", "gap_arrays", "check_memory", "flight_advice"]
 
 MEMORY_ENV = "FINKENSIM_MEMORY_AVAILABLE"
 """Environment variable overriding the available memory (bytes)."""
@@ -41,9 +41,12 @@ def available_bytes() -> int | None:
     env = os.environ.get(MEMORY_ENV)
     if env:
         try:
-            return int(float(env))
+            value = float(env)
         except ValueError:
-            raise ConfigError(f"{MEMORY_ENV} = {env!r}: expected a number of bytes, e.g. 2e9") from None
+            value = math.nan
+        if not (math.isfinite(value) and value >= 0):
+            raise ConfigError(f"{MEMORY_ENV} = {env!r}: expected a finite number of bytes >= 0, e.g. 2e9")
+        return int(value)
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
@@ -93,11 +96,41 @@ def flight_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1, i
     return out
 
 
-def episode_arrays(cfg: Config, duration: float | None = None) -> dict[str, float]:
-    """Bytes one sweep episode holds (it records poses only; the sensors run without being recorded)."""
+def episode_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1) -> dict[str, float]:
+    """Bytes one sweep episode (or a batched rollout of ``n_envs`` of them, as a tune trial flies) holds: it
+    records poses only; the sensors run without being recorded."""
     T = _steps(cfg.simulation.duration if duration is None else duration, cfg.simulation.dt)
     N = float(cfg.copters.n)
-    return {"pose (T, N, 3)": T * N * 3 * F8 * 2}
+    return {f"pose (T, {'B, ' if n_envs != 1 else ''}N, 3)": T * float(n_envs) * N * 3 * F8 * 2}
+
+
+def log_arrays(T: float, N: int, sonars: int = 0, ranging: bool = False, imu: bool = False) -> dict[str, float]:
+    """Bytes of a flight log of T samples of N copters being built (the log and one working copy of each array):
+    ``sonars`` ultrasonic channels per copter, the (T, N, N) ``ranging`` block, the ``imu`` block."""
+    T, N = float(T), float(N)
+    out = {"pose (T, N, 3)": T * N * 3 * F8 * 2, "t (T,)": T * F8 * 2}
+    if sonars:
+        out[f"ultrasonic (T, N, {sonars})"] = T * N * sonars * F8 * 2
+    if ranging:
+        out["ranging (T, N, N)"] = T * N * N * F8 * 2
+    if imu:
+        out["imu (T, N, 3)"] = T * N * 3 * F8 * 2
+    return out
+
+
+COMBINATION_BYTES = 5000
+"""Bytes a sweep holds per combination: its Config (about 2.9 KB, measured with tracemalloc on a 2000-point grid)
+and the design's dicts of values while they are built."""
+RUN_BYTES = 1000
+"""Bytes a sweep holds per run: its Run record (about 170 B measured) and its row in the results table and the
+parquet table written from it."""
+
+
+def sweep_objects(n_combinations: float, replicates: float = 1) -> dict[str, float]:
+    """Bytes of the Python objects a sweep of ``n_combinations`` x ``replicates`` runs holds before and after it
+    runs (its configs, runs and result rows), estimated from the counts alone, before anything is built."""
+    n, runs = float(n_combinations), float(n_combinations) * float(replicates)
+    return {f"configs ({n:.3g} combinations)": n * COMBINATION_BYTES, f"runs and results ({runs:.3g})": runs * RUN_BYTES}
 
 
 def gap_arrays(cfg: Config, readings: float) -> dict[str, float]:

@@ -12,10 +12,12 @@ plus what a run would check next: room for the copters and the memory a flight w
 a bad one one error line on stderr naming the file, the key or array and what was expected.
 :func:`check_files` returns 0 if every file is good, else 2 (the exit code of a usage error).
 
-Which kind a file is: ``.npz`` and ``.csv`` are flight logs; a TOML file with a sweep's top-level
-keys (``[grid]``, ``[random]``, ``[variants]``, ``[base]``, ``replicates``, ``metrics``) is a sweep,
-any other TOML file a scenario; a file with another suffix is a flight log if it is a zip (``.npz``)
-archive, else read as TOML.
+Which kind a file is decides :func:`finkensim.filekinds.file_kind`, the detector ``gap`` and ``import``
+use too: flight logs (``.npz``), tracking and readings CSV files (by their header), scenario, sweep, study
+and topics TOML files (by their top-level keys) and recordings (ROS 1 / ROS 2 bags, MCAP). Study files are
+read by :func:`finkensim.tune.parse_study` (every combination of the ranges checked), readings CSV files
+cell by cell as ``import --readings`` reads them, topics files by ``import --topics``' parser, and bags
+opened and their topics listed.
 """
 from __future__ import annotations
 
@@ -25,45 +27,12 @@ from typing import Callable, Sequence
 
 from .budget import check_memory, flight_advice, flight_arrays, format_bytes
 from .config import ConfigError
-from .usertext import strip_bom
+from .filekinds import SWEEP_KEYS, FileKindError, file_kind
 from .flightlog import FlightLog, FlightLogError, from_csv, load
 
 __all__ = ["SWEEP_KEYS", "file_kind", "check_file", "check_files", "log_summary"]
 
-SWEEP_KEYS = ("grid", "random", "variants", "base", "replicates", "metrics")
-"""Top-level TOML keys that only a sweep file has (a scenario's top-level keys are config sections)."""
-
 EXIT_OK, EXIT_BAD = 0, 2
-
-
-def _toml_tables(path: Path) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python < 3.11
-        import tomli as tomllib
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ConfigError(f"{path}: not a text (TOML) file, and not a flight log (.npz, .csv)") from None
-    try:
-        return tomllib.loads(strip_bom(text))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"invalid TOML in {path}: {exc}") from None
-
-
-def file_kind(path: Path) -> str:
-    """``"log"``, ``"csv"``, ``"sweep"`` or ``"scenario"`` for an existing file (see the module docstring)."""
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        return "log"
-    if suffix == ".csv":
-        return "csv"
-    if suffix != ".toml":
-        with path.open("rb") as fh:
-            if fh.read(4) == b"PK\x03\x04":
-                return "log"
-    tables = _toml_tables(path)
-    return "sweep" if any(k in tables for k in SWEEP_KEYS) else "scenario"
 
 
 def log_summary(log: FlightLog) -> str:
@@ -86,9 +55,11 @@ def log_summary(log: FlightLog) -> str:
 
 def _scenario_summary(path: Path) -> str:
     from .default_scenario import load_scenario
+    from .scenario import preflight
 
     cfg = load_scenario(path)
     sim = cfg.simulation
+    preflight(cfg)  # every check `run` makes before it flies (ranges, mixture files, sensors, steps, placement)
     T = int(round(sim.duration / sim.dt)) + 1
     total = check_memory(flight_arrays(cfg), f"a flight of {sim.duration:g} s of {cfg.copters.n} copters",
                          flight_advice(cfg))
@@ -108,6 +79,49 @@ def _sweep_summary(path: Path) -> str:
             f"N = {cfg.copters.n} copters, arena {cfg.arena.width:g} x {cfg.arena.length:g} m")
 
 
+def _study_summary(path: Path) -> str:
+    from .tune.studyfile import parse_study
+
+    spec = parse_study(path)
+    return (f"study, {spec.n_trials} trials over {', '.join(p.key for p in spec.params)}; objectives "
+            f"{', '.join(f'{m} ({d})' for m, d in spec.objectives)}; {spec.n_envs} environments x {spec.duration:g} s "
+            f"per trial ({spec.sampler})")
+
+
+def _readings_summary(path: Path) -> str:
+    from .flightlog.csv import numeric_column, read_table
+    from .importing.recording import READING_COLUMNS, parse_channel
+
+    where = f"readings CSV {str(path)!r}"
+    df, lines = read_table(path, READING_COLUMNS, where)
+    copter = df["copter"].str.strip().to_numpy()
+    t = numeric_column(df, "t", lines, where, copter, "every reading needs its time")
+    numeric_column(df, "value", lines, where, copter, "NaN marks a lost reading", allow_nan=True)
+    channels = sorted(set(df["channel"].str.strip()))
+    for name in channels:
+        parse_channel(name)
+    return (f"readings CSV, {len(df)} readings over {float(t.max() - t.min()):g} s, {len(set(copter))} copters, "
+            f"channels: {', '.join(channels)}; read by finkensim import --readings (with --tracking)")
+
+
+def _topics_summary(path: Path) -> str:
+    from .importing.topics import parse_topics
+
+    spec = parse_topics(path)
+    return f"topics file, {len(spec.entries)} topics; read by finkensim import --bag ... --topics"
+
+
+def _bag_summary(path: Path) -> str:
+    from .importing.bags import list_topics
+
+    try:
+        topics = list_topics(path)
+    except ImportError:
+        return "recording (bag); reading it needs the [import] extra: pip install 'finkensim[import]'"
+    return (f"recording (bag), {len(topics)} topics, {sum(topics.values())} messages; read by finkensim import "
+            f"--bag ... --topics")
+
+
 def check_file(path: str | Path, arena: Sequence[float] | None = None) -> str:
     """The summary of a good file (without its name); raises ConfigError / FlightLogError for a bad one.
 
@@ -116,19 +130,20 @@ def check_file(path: str | Path, arena: Sequence[float] | None = None) -> str:
     p = Path(path)
     if not p.exists():
         raise ConfigError(f"{p}: file does not exist")
-    if not p.is_file():
-        raise ConfigError(f"{p}: not a file")
     try:
         kind = file_kind(p)
+    except FileKindError as exc:
+        raise ConfigError(str(exc)) from None
     except OSError as exc:
         raise ConfigError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
     if kind == "log":
         return log_summary(load(p))
     if kind == "csv":
-        return log_summary(from_csv(p, tuple(arena) if arena is not None else (3.0, 4.0)))
-    if kind == "sweep":
-        return _sweep_summary(p)
-    return _scenario_summary(p)
+        return log_summary(from_csv(p, tuple(arena) if arena is not None else (3.0, 4.0))) + \
+            "; also read by finkensim import --tracking"
+    summary = {"sweep": _sweep_summary, "study": _study_summary, "readings": _readings_summary,
+               "topics": _topics_summary, "bag": _bag_summary, "scenario": _scenario_summary}[kind]
+    return summary(p)
 
 
 def check_files(paths: Sequence[str], prog: str = "finkensim check", arena: Sequence[float] | None = None,

@@ -29,6 +29,7 @@ from . import __version__
 from .cliargs import UsageError
 from .cliargs import load_scenario_arg as _load_scenario_arg
 from .cliargs import one_line as _one_line
+from .cliargs import require_flight_log as _require_flight_log
 from .cliargs import output_dir as _output_dir
 from .cliargs import use_agg as _use_agg
 
@@ -253,9 +254,12 @@ def _add_gap(sub) -> None:
         "gap", help="diagnose the sim-to-real gap of real flight logs",
         description="Replay real flight logs in the simulator, find where simulated and real sensor data disagree, "
                     "which catalogued effect explains it and how far the gap shrinks on held-out flights. Writes "
-                    "DIR/report.json (docs/formats/gap-report.md), DIR/report.md and figures.")
+                    "DIR/report.json (docs/formats/gap-report.md), DIR/report.md, figures and DIR/calibrated.toml.")
     p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (docs/formats/flightlog.md)")
-    p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
+    p.add_argument("--config", default=None, metavar="sim.toml",
+                   help="simulator config (error models, walls, [gap]); default: finkensim's default config "
+                        "(finkensim.config defaults, not the built-in `run` scenario); the geometry (arena, "
+                        "copters, sonar mounting, copter radius) and the times always come from each log")
     p.add_argument("--out", default="out/gap", metavar="DIR",
                    help="output directory: report.json, report.md, figures, calibrated.toml (default: %(default)s)")
     p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
@@ -277,14 +281,22 @@ def cmd_gap(args) -> int:
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     from .config import ConfigError, load_config
     from .flightlog import FlightLogError, load
-    from .gap import Diagnosis, run_diagnosis
+    from .gap import Diagnosis, check_effects, check_heldout, run_diagnosis
     from .gap.replay import GapInputError
 
     _use_agg()
     _output_dir(prog, args.out, create=False)
+    try:  # every argument is checked before any flight is read or replayed
+        check_heldout([Path(p).name for p in args.logs], args.heldout)
+        if args.effects is not None:
+            check_effects(args.effects)
+    except GapInputError as exc:
+        raise UsageError(prog, str(exc)) from None
     cfg = load_config(None)
     if args.config is not None:
         cfg = _load_scenario_arg(prog, args.config)
+    for path in args.logs:
+        _require_flight_log(prog, path)  # a CSV, bag or TOML file: said so, with what to do
     logs, names = [], []
     for path in args.logs:
         try:
@@ -408,16 +420,30 @@ def _add_check(sub) -> None:
                        description="Read each file as the command using it would (flight logs .npz/.csv, scenario "
                                    "or sweep TOML), print a one-line summary of a good file and a named error for a "
                                    "bad one (exit code 2 if any file is bad). See finkensim.checkfiles.")
-    p.add_argument("files", nargs="+", metavar="FILE", help="flight logs (.npz, .csv), scenario or sweep TOML files")
-    p.add_argument("--arena", nargs=2, type=float, default=None, metavar=("W", "L"),
-                   help="arena width and length in m for .csv tracking files (default 3 4)")
+    p.add_argument("files", nargs="*", metavar="FILE",
+                   help="flight logs (.npz), tracking or readings CSV files, scenario, sweep, study or topics TOML "
+                        "files, bags (.bag, .mcap, ROS 2 bag folders)")
+    p.add_argument("--arena", nargs="+", default=None, metavar="W,L",
+                   help="arena width and length in m for .csv tracking files: 3,4 or 3 4, as in finkensim import "
+                        "(default 3,4)")
     p.set_defaults(func=cmd_check)
 
 
 def cmd_check(args) -> int:
     from .checkfiles import check_files
+    from .usertext import arena_size
 
-    return check_files(args.files, args.prog, arena=args.arena)
+    files, arena = list(args.files), None
+    if args.arena is not None:  # --arena takes W,L (one word) or W L (two): later words are files
+        n = 1 if "," in args.arena[0] else 2
+        files += args.arena[n:]
+        try:
+            arena = arena_size(args.arena[:n])
+        except ValueError as exc:
+            raise UsageError(args.prog, str(exc)) from None
+    if not files:
+        raise UsageError(args.prog, "the following arguments are required: FILE")
+    return check_files(files, args.prog, arena=arena)
 
 
 # ------------------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["UsageError", "one_line", "load_scenario_arg", "output_dir", "use_agg"]
+__all__ = ["UsageError", "one_line", "load_scenario_arg", "output_dir", "use_agg", "require_flight_log"]
 
 
 class UsageError(Exception):
@@ -70,3 +70,24 @@ def use_agg() -> None:
         import matplotlib
 
         matplotlib.use("Agg")
+
+
+def require_flight_log(prog: str, path: str) -> None:
+    """A UsageError unless ``path`` (if it exists: ``load`` names a missing file) is a flight log; the message says
+    what the file is and how to use it (:func:`finkensim.filekinds.file_kind`, the detector check uses)."""
+    from .filekinds import FileKindError, describe_kind, file_kind
+
+    p = Path(path)
+    if not p.exists():
+        return
+    try:
+        kind = file_kind(p)
+    except (FileKindError, OSError) as exc:
+        raise UsageError(prog, f"{path}: not a flight log (.npz): {exc}") from None
+    if kind == "log":
+        return
+    advice = {"csv": "turn it into one with finkensim import --tracking ... --readings ... --out FLIGHT.npz",
+              "readings": "turn it into one with finkensim import --tracking ... --readings ... --out FLIGHT.npz",
+              "bag": "turn it into one with finkensim import --bag ... --topics ... --out FLIGHT.npz",
+              "scenario": "give a simulator config as --config"}.get(kind, "gap reads flight logs (spec/flightlog.md)")
+    raise UsageError(prog, f"{path} is a {describe_kind(kind)}, not a flight log (.npz): {advice}")

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .configfields import ConfigError, Section as _Section, describe_range, field_spec as _f
-from .usertext import strip_bom, suggest
+from .usertext import loads_toml, suggest
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -423,7 +423,7 @@ def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
                               else f"config file {str(path)!r} is not a file")
         text = path.read_text()
     try:
-        data = tomllib.loads(strip_bom(text))
+        data = loads_toml(text)
     except tomllib.TOMLDecodeError as exc:
         where = f" in {path}" if path else ""
         raise ConfigError(f"invalid TOML{where}: {exc}") from None

@@ -50,6 +50,7 @@ computed in blocks of samples, so memory stays bounded for long or wide batches.
 """
 from __future__ import annotations
 
+import math
 from typing import Iterable, NamedTuple, Sequence
 
 import numpy as np
@@ -72,31 +73,37 @@ _BLOCK_ELEMENTS = 2_000_000  # pairwise entries (samples x B x N x N) handled at
 
 
 class MetricInfo(NamedTuple):
+    """A metric's unit, description and the range its values (and so their mean) can take: ``low``, ``high``."""
+
     unit: str
     doc: str
+    low: float = -math.inf
+    high: float = math.inf
 
 
 METRICS: dict[str, MetricInfo] = {
-    "cohesion": MetricInfo("m", "mean distance of a copter from the swarm centroid"),
-    "nearest_neighbour": MetricInfo("m", "mean distance of a copter to its nearest neighbour"),
-    "wall_sticking": MetricInfo("fraction", f"fraction of copter-time with the body within {WALL_DISTANCE} m of a wall"),
-    "collisions": MetricInfo("count", "copter-copter collision onsets, per pair"),
-    "wall_contacts": MetricInfo("count", "wall contact onsets, summed over copters"),
-    "fragmentation": MetricInfo("components", f"mean number of groups (links < {LINK_RANGE} m)"),
-    "coverage": MetricInfo("fraction", f"fraction of {COVERAGE_CELL} m grid cells visited"),
+    "cohesion": MetricInfo("m", "mean distance of a copter from the swarm centroid", 0.0),
+    "nearest_neighbour": MetricInfo("m", "mean distance of a copter to its nearest neighbour", 0.0),
+    "wall_sticking": MetricInfo("fraction", f"fraction of copter-time with the body within {WALL_DISTANCE} m of a wall",
+                                0.0, 1.0),
+    "collisions": MetricInfo("count", "copter-copter collision onsets, per pair", 0.0),
+    "wall_contacts": MetricInfo("count", "wall contact onsets, summed over copters", 0.0),
+    "fragmentation": MetricInfo("components", f"mean number of groups (links < {LINK_RANGE} m)", 1.0),
+    "coverage": MetricInfo("fraction", f"fraction of {COVERAGE_CELL} m grid cells visited", 0.0, 1.0),
 }
 """Every episode metric by name, with its unit and what it measures (:class:`MetricInfo`)."""
 
 
 def check_metric_names(names: Iterable[str] | None) -> tuple[str, ...]:
-    """The metric names in canonical order; unknown names raise ``ValueError`` with a suggestion."""
+    """The metric names in the order given (repeats dropped; None: every metric in :data:`METRICS` order);
+    unknown names raise ``ValueError`` with a suggestion."""
     if names is None:
         return tuple(METRICS)
     names = list(names)
     for n in names:
         if n not in METRICS:
             raise ValueError(f"unknown metric {n!r}{suggest(n, METRICS)}; expected some of {', '.join(METRICS)}")
-    return tuple(m for m in METRICS if m in names)
+    return tuple(dict.fromkeys(names))
 
 
 def _positions(pose) -> np.ndarray:

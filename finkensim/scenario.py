@@ -35,6 +35,7 @@ __all__ = [
     "flight_record_names",
     "sensor_blocks",
     "simulate_flight",
+    "preflight",
 ]
 
 
@@ -116,6 +117,23 @@ def _n_steps(duration: float, dt: float) -> int:
     return n
 
 
+def preflight(cfg: Config, ideal: bool = False):
+    """Everything a flight of ``cfg`` checks before it flies, without flying: at least one step of
+    ``simulation.dt`` in ``simulation.duration``, the memory the flight would hold, the sensor and
+    behaviour models (ranges, mixture files, a wall check's sensors) and the start placement of
+    environment 0 of ``simulation.seed`` (which warns when ``copters.min_separation`` cannot be met).
+
+    Returns (swarm, state0, n_steps): the :class:`~finkensim.swarm.SwarmSim`, its initial state (B = 1)
+    and the number of steps. ``finkensim check`` runs it on a scenario file, so that check and run agree.
+    """
+    sim = cfg.simulation
+    n_steps = _n_steps(sim.duration, sim.dt)
+    check_memory(flight_arrays(cfg, ideal=ideal), f"a flight of {sim.duration:g} s of {cfg.copters.n} copters",
+                 flight_advice(cfg))
+    swarm = SwarmSim(cfg)
+    return swarm, swarm.init(n_envs=1, seed=sim.seed), n_steps
+
+
 def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, *, duration: float | None = None,
                     seed: int | None = None, ideal: bool = False,
                     progress: bool = False) -> tuple[FlightLog, Trajectory, World]:
@@ -174,12 +192,7 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     if updates:
         cfg = cfg.replace(updates)
     sim = cfg.simulation
-    n_steps = _n_steps(sim.duration, sim.dt)
-    check_memory(flight_arrays(cfg, ideal=ideal), f"a flight of {sim.duration:g} s of {cfg.copters.n} copters",
-                 flight_advice(cfg))
-
-    swarm = SwarmSim(cfg)
-    state0 = swarm.init(n_envs=1, seed=sim.seed)
+    swarm, state0, n_steps = preflight(cfg, ideal=ideal)
     # n_steps + 1 steps record the states at t = 0 .. duration inclusive
     _, rec = swarm.rollout(state0, n_steps + 1, record=flight_record_names(swarm, ideal),
                            progress="flight" if progress else False)

@@ -17,3 +17,18 @@ def _numba_threads_restored():
     if after != before:
         numba.set_num_threads(before)
         pytest.fail(f"the test left numba's thread count at {after} (it was {before}); restore it in a finally block")
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The fuzz suite's counts per category (``make fuzz`` prints them; docs/reliability.md quotes them)."""
+    import sys
+
+    mod = sys.modules.get("tests.test_fuzz_cli")
+    counts = getattr(mod, "COUNTS", None)
+    if not counts:
+        return
+    write = terminalreporter.write_line
+    write("fuzz counts (inputs tried / named errors without a traceback, per category):")
+    for cat, (tried, named) in sorted(counts.items()):
+        write(f"  {cat}: {tried} / {named}")
+    write(f"  total: {sum(v[0] for v in counts.values())} / {sum(v[1] for v in counts.values())}")

@@ -324,7 +324,7 @@ def test_round_trip_with_an_early_offset_names_a_negative_latency(simulated):
 def test_cli_errors_are_one_line(tmp_path):
     base = [sys.executable, "-m", "finkensim.cli", "import"]
     cases = [
-        (["--arena", "3", "--out", str(tmp_path / "x.npz"), "--tracking", "t.csv"], "--arena '3': expected 2"),
+        (["--arena", "3", "--out", str(tmp_path / "x.npz"), "--tracking", "t.csv"], "--arena '3': expected a positive width and length"),
         (["--arena", "3,4", "--out", str(tmp_path / "x.npz")], "an input is required"),
         (["--arena", "3,4", "--out", str(tmp_path / "x.npz"), "--bag", "b.bag"], "--bag needs --topics"),
         (["--arena", "3,4", "--out", str(tmp_path / "no" / "x.npz"), "--tracking", "t.csv"], "does not exist"),

@@ -215,7 +215,7 @@ def test_metrics_are_per_environment_and_blocking_does_not_change_them(monkeypat
 
 
 def test_metric_names_and_shapes_are_checked():
-    assert check_metric_names(["coverage", "cohesion"]) == ("cohesion", "coverage")  # canonical order
+    assert check_metric_names(["coverage", "cohesion", "coverage"]) == ("coverage", "cohesion")  # file order (issue 40)
     m = episode_metrics(traj([(1, 1), (1, 3)]), ARENA, R, names=["cohesion"])
     assert list(m) == ["cohesion"]
     with pytest.raises(ValueError, match="did you mean 'cohesion'"):

@@ -476,9 +476,23 @@ def test_summary_is_mean_and_student_t_interval():
     s = summarize(df, ["copters.n"], ["cohesion"])
     lo, hi = stats.t.interval(0.95, 3, loc=np.mean(values), scale=stats.sem(values))
     assert s.loc[0, "cohesion_mean"] == pytest.approx(3.5)
-    assert (s.loc[0, "cohesion_ci_low"], s.loc[0, "cohesion_ci_high"]) == (pytest.approx(lo), pytest.approx(hi))
+    assert lo < 0  # the t interval reaches below 0; cohesion (m) cannot: the interval is cut there (issue 40)
+    assert (s.loc[0, "cohesion_ci_low"], s.loc[0, "cohesion_ci_high"]) == (0.0, pytest.approx(hi))
     assert (s.loc[1, "n_ok"], s.loc[1, "n_error"], s.loc[1, "cohesion_mean"]) == (1, 1, 5.0)
     assert math.isnan(s.loc[1, "cohesion_ci_low"])  # one value: no interval
+
+
+def test_fraction_intervals_stay_in_zero_one():
+    """wall_sticking over 4 seeds: the t interval of [0, 0, 0, 0.3] reaches below 0 and of [1, 1, 1, 0.7] above 1;
+    summary.csv cuts both to [0, 1] (issue 40)."""
+    for values, (lo_exp, hi_exp) in (([0.0, 0.0, 0.0, 0.3], (0.0, None)), ([1.0, 1.0, 1.0, 0.7], (None, 1.0))):
+        df = pd.DataFrame({"run_id": range(4), "combination": [0] * 4, "replicate": range(4), "seed": range(4),
+                           "wall_sticking": values, "status": ["ok"] * 4, "error": [""] * 4, "elapsed": [0.1] * 4})
+        s = summarize(df, [], ["wall_sticking"])
+        lo, hi = stats.t.interval(0.95, 3, loc=np.mean(values), scale=stats.sem(values))
+        assert lo < 0 or hi > 1
+        assert s.loc[0, "wall_sticking_ci_low"] == (lo_exp if lo_exp is not None else pytest.approx(lo))
+        assert s.loc[0, "wall_sticking_ci_high"] == (hi_exp if hi_exp is not None else pytest.approx(hi))
 
 
 # --------------------------------------------------------------------------- the command line

@@ -1,7 +1,8 @@
 """Text arrays and the JSON ``meta`` of a flight log: decoding, type checks and (de)serialisation.
 
-``format`` and ``meta`` are stored as 0-d str arrays and ``copter_ids`` as a str array (N,);
-older or foreign writers may use bytes, which are decoded as UTF-8. ``meta`` is a JSON object
+``format`` and ``meta`` are stored as 0-d str arrays and ``copter_ids`` as a str array (N,), as the
+spec says: bytes there are an error naming the array (a writer that stores bytes stores something else
+than the spec's str, and decoding it silently would hide that); extras may hold UTF-8 bytes. ``meta`` is a JSON object
 without NaN or infinities.
 """
 from __future__ import annotations
@@ -17,18 +18,22 @@ from .messages import shape_text
 __all__ = ["as_text", "meta_to_json", "meta_from_json"]
 
 
-def as_text(name: str, arr: Any, *, scalar: bool) -> Any:
+def as_text(name: str, arr: Any, *, scalar: bool, bytes_ok: bool = False) -> Any:
     """A str (0-d) or str array from a unicode/bytes array; raise if it is not text.
 
     Args:
         name: the array's name for the error message.
         arr: a unicode or UTF-8 bytes array (any shape; 0-d when ``scalar``).
         scalar: return a Python ``str`` from a 0-d array (and reject any other shape).
+        bytes_ok: decode a bytes array as UTF-8 (else bytes are an error: the spec's text arrays are str).
 
     Returns:
         a ``str`` when ``scalar``, else a unicode array of the same shape.
     """
     a = np.asarray(arr)
+    if a.dtype.kind == "S" and not bytes_ok:
+        raise FlightLogError(f"{name} has dtype {a.dtype} (bytes); expected str (np.str_, dtype '<U...'): "
+                             f"write it as a str array, e.g. np.array(text) rather than np.array(text.encode())")
     if a.dtype.kind == "S":
         try:
             a = np.char.decode(a, "utf-8")

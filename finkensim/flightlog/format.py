@@ -171,14 +171,15 @@ class FlightLog:
     extras: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        # Lists become arrays and integers float64; other dtypes are kept for validate() to judge.
+        # Lists become arrays and integers float64 (copter_ids: names, kept as given so that validate() names
+        # their real dtype); other dtypes are kept for validate() to judge.
         for name in REQUIRED + OPTIONAL:
             value = getattr(self, name)
             if value is None or name == "ultrasonic_offset":
                 continue
             try:
                 a = np.asarray(value)
-                setattr(self, name, a.astype(np.float64) if a.dtype.kind in "iu" else a)
+                setattr(self, name, a.astype(np.float64) if a.dtype.kind in "iu" and name != "copter_ids" else a)
             except (ValueError, TypeError) as exc:
                 raise FlightLogError(f"{name} cannot be converted to an array ({exc}); expected a rectangular array") from None
         if self.meta is None:

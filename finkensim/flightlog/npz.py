@@ -162,7 +162,7 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
                 continue
             a = raw[name]
             if name == "copter_ids":
-                a = as_text(name, a, scalar=False) if a.dtype.kind in "US" else a
+                a = as_text(name, a, scalar=False) if a.dtype.kind in "US" else a  # numbers: named by validate
             elif a.dtype.kind in "iuf":
                 check_dtype(name, a)  # an integer pose / t is an error even without validation
                 a = a.astype(np.float64, copy=False)

@@ -29,6 +29,9 @@ __all__ = [
     "POSE_SCALE_FACTOR",
     "SCALAR_LIMITS",
     "T_MS_STEP_ABOVE",
+    "T_MS_STEP_FROM",
+    "T_MS_SPAN_ABOVE",
+    "YAW_DEG_RATE_ABOVE",
     "INTEGER_ALLOWED",
     "check_dtype",
 ]
@@ -40,7 +43,10 @@ RANGE_CM_ABOVE = 50.0        # median sonar / ranging reading > 50 "m": cm ...
 RANGE_MM_ABOVE = 500.0       # ... > 500 "m": mm
 ACC_CM_ABOVE = 50.0          # median |imu_acc| > 50 "m/s^2": cm/s^2 ...
 ACC_MM_ABOVE = 500.0         # ... > 500: mm/s^2
-T_MS_STEP_ABOVE = 5.0        # median sample step > 5 "s" (that is plausible / 1000): t in ms
+T_MS_STEP_ABOVE = 5.0        # median sample step > 5 "s" (that is plausible / 1000): t in ms ...
+T_MS_STEP_FROM = 0.5         # ... and a step >= 0.5 "s" (the importer's threshold) over a flight longer than
+T_MS_SPAN_ABOVE = 3600.0     # one hour (no battery flies that long; a 200 Hz tracker in ms spans 1000 "s" in 5 s)
+YAW_DEG_RATE_ABOVE = 20.0    # pose yaw beyond 2 pi turning faster than 20 "rad"/s (90th percentile): degrees
 POSE_SCALE_FACTOR = 10.0     # poses > 10x the arena that fit it after /100 (/1000): cm (mm)
 SCALAR_LIMITS = {            # scalar lengths above these limits (m) look like cm or mm
     "ultrasonic_offset": 1.0,
@@ -187,7 +193,11 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
     * scalars: ``ultrasonic_offset`` > 1 m, ``meta['copter_radius']`` > 2 m,
       ``meta['altitude']`` > 20 m, ``meta['tracking_sigma_xy']`` > 1 m look like cm or mm.
 
-    Yaw angles (``pose``, ``imu_gyro``) are not unit-checked: unwrapped radians can be large.
+    * ``t`` also: a median step >= 0.5 s over a span above one hour looks like milliseconds (a 200 Hz
+      tracker in ms has steps of 5 "s"; no copter flies an hour).
+    * ``pose`` yaw: beyond 2 pi in magnitude and either mostly beyond it or turning faster than
+      20 per second at the 90th percentile looks like degrees (wrap jumps of 2 pi or 360 are not turns);
+      unwrapped radians over a few slow turns pass. ``imu_gyro`` is not unit-checked.
     """
     if not isinstance(log, FlightLog):
         raise FlightLogError(f"expected a FlightLog, got {type(log).__name__}")
@@ -202,6 +212,8 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
     radius = _check_meta(log.meta, check_units)
     _check_copter_ids(ids)
     _check_pose(arrays["pose"], t, ids, (width, length), radius, check_units)
+    if check_units:
+        _check_yaw_degrees(arrays["pose"][..., 2], t, ids)
     if "ultrasonic" in arrays:
         _check_ultrasonic(arrays, t, ids, check_units)
     if "ranging" in arrays:
@@ -330,11 +342,17 @@ def _check_time(t: np.ndarray, check_units: bool) -> None:
                 f"t is not strictly increasing: t[{i}] = {fmt(t[i])} s, t[{i + 1}] = {fmt(t[i + 1])} s "
                 f"({plural(int(np.sum(dt <= 0)), 'non-increasing step')}); expected strictly increasing sample times"
             )
-        step = float(np.median(dt))
+        step, span = float(np.median(dt)), float(t[-1] - t[0])
         if check_units and step > T_MS_STEP_ABOVE:
             raise FlightLogError(
                 f"t has median sample step {fmt(step)}, implausibly long for s (> {fmt(T_MS_STEP_ABOVE)}); "
                 "expected seconds: t looks like milliseconds: divide by 1000"
+            )
+        if check_units and step >= T_MS_STEP_FROM and span > T_MS_SPAN_ABOVE:
+            raise FlightLogError(
+                f"t has median sample step {fmt(step)} over a span of {fmt(span)}, implausible for s (a step >= "
+                f"{fmt(T_MS_STEP_FROM)} s over more than {fmt(T_MS_SPAN_ABOVE)} s); expected seconds: t looks like "
+                "milliseconds: divide by 1000"
             )
 
 
@@ -448,3 +466,23 @@ def _check_imu(acc: np.ndarray, gyro: np.ndarray, t: np.ndarray, ids: np.ndarray
     _check_nonfinite_readings("imu_gyro", gyro, t, ids, "tc")
     if check_units:
         _check_median_units("imu_acc", acc, ACC_CM_ABOVE, ACC_MM_ABOVE, "m/s^2")
+
+
+def _check_yaw_degrees(yaw: np.ndarray, t: np.ndarray, ids: np.ndarray) -> None:
+    """Raise if the pose yaw (T, N) looks like degrees (see :func:`validate`, :data:`YAW_DEG_RATE_ABOVE`)."""
+    top = float(np.max(np.abs(yaw))) if yaw.size else 0.0
+    if top <= 2 * math.pi + 1e-9:
+        return
+    d = np.abs(np.diff(yaw, axis=0))  # (T-1, N) per copter
+    dt = np.diff(t)[:, None]
+    turn = ~((np.abs(d - 2 * math.pi) < 0.5) | (np.abs(d - 360.0) < 5.0))
+    rate = (d / dt)[turn]
+    p90 = float(np.quantile(rate, 0.9)) if rate.size else 0.0
+    med = float(np.median(np.abs(yaw)))
+    if med > 2 * math.pi or p90 > YAW_DEG_RATE_ABOVE:
+        c = int(np.argmax(np.max(np.abs(yaw), axis=0)))
+        raise FlightLogError(
+            f"pose yaw reaches {fmt(top)} (copter {str(ids[c])!r}; median |yaw| {fmt(med)}, 90th-percentile turn "
+            f"rate {fmt(p90)} per s); expected rad: looks like degrees, multiply by pi/180 (if it is radians "
+            "accumulated over many turns, wrap it to [-pi, pi))"
+        )

@@ -5,13 +5,13 @@ effect explains it, and how far the gap shrinks once that effect is added.
 split preparation (replay, tables, scales) from the search, so a notebook can register its own effects
 (:func:`finkensim.gap.effects.register`) and rerun the search on the same prepared data.
 """
-from .diagnose import Diagnosis
+from .diagnose import Diagnosis, check_heldout
 from .effects import Effect, Param, register
 from .model import ModelParams
 from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .pipeline import diagnose
-from .selection import run_diagnosis
+from .selection import check_effects, run_diagnosis
 
 __all__ = ["diagnose", "run_diagnosis", "Diagnosis", "GapReport", "GapDetails", "ModelParams", "Effect", "Param",
-           "register", "GapInputError"]
+           "register", "GapInputError", "check_heldout", "check_effects"]

@@ -83,6 +83,22 @@ class FitResult:
     rows_gap: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out gap
 
 
+def check_heldout(names: list[str], heldout: list[str] | None) -> None:
+    """Raise :class:`GapInputError` unless ``heldout`` (flight names, or None/empty for the default split) names
+    only given flights, leaves one for training, and is not given with a single flight (whose second half is
+    always the held-out part). Cheap: the CLI calls it before any flight is read."""
+    if not heldout:
+        return
+    unknown = [h for h in heldout if h not in names]
+    if unknown:
+        raise GapInputError(f"--heldout names {unknown}: not among the given flights {list(names)}")
+    if len(names) == 1:
+        raise GapInputError(f"--heldout {' '.join(heldout)}: with a single flight its second half is held out; "
+                            "--heldout chooses held-out flights among two or more")
+    if len(set(heldout)) == len(set(names)):
+        raise GapInputError("--heldout names every flight: expected at least one training flight")
+
+
 class Diagnosis:
     """Holds the prepared flights, tables and row sets; evaluates models; runs the search.
 
@@ -151,6 +167,7 @@ class Diagnosis:
     def _split(self, heldout):
         n = len(self.flights)
         self.single = n == 1
+        check_heldout(self.names, heldout)
         if self.single:
             f = self.flights[0]
             mid = f.t[0] + 0.5 * (f.t[-1] - f.t[0])
@@ -159,12 +176,7 @@ class Diagnosis:
             self.train_names, self.heldout_names = [f.name], [f.name]
             return
         if heldout:
-            unknown = [h for h in heldout if h not in self.names]
-            if unknown:
-                raise GapInputError(f"--heldout names {unknown}: not among the given flights {self.names}")
             ho = set(heldout)
-            if len(ho) == n:
-                raise GapInputError("--heldout names every flight: expected at least one training flight")
         else:
             ho = {f.name for f in self.flights[1::2]}
         self.heldout_names = [f.name for f in self.flights if f.name in ho]

@@ -25,7 +25,14 @@ from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .shrink import ShrinkMeter
 
-__all__ = ["run_diagnosis"]
+__all__ = ["run_diagnosis", "check_effects"]
+
+
+def check_effects(names) -> None:
+    """Raise :class:`GapInputError` if ``names`` holds an effect that is not catalogued (``--effects``, ``gap.effects``)."""
+    unknown = [n for n in names if n not in fx.REGISTRY]
+    if unknown:
+        raise GapInputError(f"--effects / gap.effects names unknown effects {unknown}; catalogued: {sorted(fx.REGISTRY)}")
 
 
 def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4,
@@ -38,9 +45,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     cfg = diag.cfg.gap
     t0 = time.perf_counter()
     names = list(effect_names if effect_names is not None else (cfg.effects or fx.REGISTRY))
-    unknown = [n for n in names if n not in fx.REGISTRY]
-    if unknown:
-        raise GapInputError(f"gap.effects names unknown effects {unknown}; catalogued: {sorted(fx.REGISTRY)}")
+    check_effects(names)
     cands = [fx.REGISTRY[n] for n in names if any(s in diag.tables for s in fx.REGISTRY[n].sensors)]
 
     diag.say("scoring the configured model")

@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 
+from ..budget import check_memory, log_arrays
 from ..flightlog import DEFAULT_COPTER_RADIUS, FlightLog, FlightLogError, validate
 from ..flightlog.messages import fmt
 from .clock import estimate_offset
@@ -225,6 +226,10 @@ def build_flight(rec, arena, *, sonar_yaw=None, sonar_offset: float | None = Non
     K = int(math.floor((t_hi - t0) / dt + 1e-9)) + 1
     if K < 1:
         raise RecordingError(f"the tracked span {fmt(t_lo)}-{fmt(t_hi)} s holds no sample at {fmt(rate)} Hz")
+    check_memory(log_arrays(K, len(ch.copters), S if has[KIND_ULTRASONIC] else 0, bool(has[KIND_RANGING]),
+                            bool(has[KIND_IMU])),
+                 f"a time base of {K} samples ({fmt(t_hi - t0)} s tracked at {fmt(rate)} Hz)",
+                 "check the tracking times (one far-off row stretches the span) or lower --rate")
     t = t0 + dt * np.arange(K)
     finite = np.isfinite(ch.rd_value)
     sample, reason = place_readings(tau, ch.rd_stream, t0, dt, K, lost=~finite)

@@ -198,11 +198,54 @@ def read_bag(path, topics) -> Recording:
             present = {c.topic: c.msgtype for c in reader.connections}
             _present_topics_error(source, wanted, present)
             conns = [c for c in reader.connections if c.topic in spec.by_topic()]
-            for conn, timestamp, raw in reader.messages(connections=conns):
-                col.add(conn.topic, conn.msgtype, timestamp, reader.deserialize(raw, conn.msgtype))
+            count, topic = 0, None
+            try:
+                for conn, timestamp, raw in reader.messages(connections=conns):
+                    topic = conn.topic
+                    msg = reader.deserialize(raw, conn.msgtype)
+                    count += 1
+                    col.add(conn.topic, conn.msgtype, timestamp, msg)
+            except RecordingError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - rosbags' ReaderError, SerdeError, ... for a corrupt message
+                raise _corrupt(source, count, topic, exc) from None
         finally:
             reader.close()
     return col.recording(source)
+
+
+def list_topics(path) -> dict[str, int]:
+    """Topic -> message count of the bag or MCAP file at ``path`` (what ``finkensim check`` shows); a file that
+    cannot be read raises RecordingError, a missing [import] extra ImportError."""
+    p = Path(path)
+    kind = _bag_kind(p)
+    source = f"{kind}:{p.name}"
+    if kind == "mcap":
+        from mcap.reader import make_reader
+
+        with open(p, "rb") as f:
+            try:
+                summary = make_reader(f).get_summary()
+            except Exception as exc:  # noqa: BLE001 - mcap raises its own error types for broken files
+                raise RecordingError(f"{source}: cannot be read as MCAP ({type(exc).__name__}: {exc})") from None
+            if summary is None:
+                raise RecordingError(f"{source}: the MCAP file has no summary (truncated?); re-record or repair it")
+            counts = summary.statistics.channel_message_counts if summary.statistics else {}
+            return {c.topic: int(counts.get(cid, 0)) for cid, c in summary.channels.items()}
+    from rosbags.highlevel import AnyReader
+
+    try:
+        reader = AnyReader([p], default_typestore=_typestore())
+        reader.open()
+    except Exception as exc:  # noqa: BLE001 - rosbags raises its own error types for unreadable bags
+        raise RecordingError(f"{source}: cannot be read as a {kind} ({type(exc).__name__}: {exc})") from None
+    try:
+        out: dict[str, int] = {}
+        for c in reader.connections:
+            out[c.topic] = out.get(c.topic, 0) + int(c.msgcount)
+        return out
+    finally:
+        reader.close()
 
 
 def _read_mcap(p: Path, wanted, col: _Collector, source: str) -> None:
@@ -220,14 +263,31 @@ def _read_mcap(p: Path, wanted, col: _Collector, source: str) -> None:
             raise RecordingError(f"{source}: cannot be read as MCAP ({type(exc).__name__}: {exc})") from None
         present = [c.topic for c in summary.channels.values()] if summary else []
         _present_topics_error(source, wanted, present)
-        for schema, channel, message in reader.iter_messages(topics=wanted):
-            if schema is None or schema.encoding != "ros2msg" or channel.message_encoding != "cdr":
-                raise RecordingError(f"{source}: topic {channel.topic!r} is encoded as {channel.message_encoding!r} "
-                                     f"with schema encoding {getattr(schema, 'encoding', None)!r}; expected ROS 2 "
-                                     "messages (cdr, ros2msg)")
-            if schema.name not in ts.types:
-                ts.register(get_types_from_msg(schema.data.decode(), schema.name))
-            col.add(channel.topic, schema.name, message.log_time, ts.deserialize_cdr(message.data, schema.name))
+        count, topic = 0, None
+        try:
+            for schema, channel, message in reader.iter_messages(topics=wanted):
+                topic = channel.topic
+                if schema is None or schema.encoding != "ros2msg" or channel.message_encoding != "cdr":
+                    raise RecordingError(f"{source}: topic {channel.topic!r} is encoded as "
+                                         f"{channel.message_encoding!r} with schema encoding "
+                                         f"{getattr(schema, 'encoding', None)!r}; expected ROS 2 messages (cdr, ros2msg)")
+                if schema.name not in ts.types:
+                    ts.register(get_types_from_msg(schema.data.decode(), schema.name))
+                msg = ts.deserialize_cdr(message.data, schema.name)
+                count += 1
+                col.add(channel.topic, schema.name, message.log_time, msg)
+        except RecordingError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - mcap / rosbags errors for a corrupt record or message
+            raise _corrupt(source, count, topic, exc) from None
+
+
+def _corrupt(source: str, count: int, topic, exc: BaseException) -> RecordingError:
+    """The error for a message that cannot be read after ``count`` good ones (last topic ``topic``)."""
+    first = (str(exc).strip().splitlines() or [""])[0]
+    return RecordingError(f"{source}: message {count + 1} (after {count} readable, last topic {topic!r}) cannot be "
+                          f"read ({type(exc).__name__}: {first}); the file is corrupt or truncated: re-record or "
+                          "repair it")
 
 
 # ------------------------------------------------------------------------------------------------ writing

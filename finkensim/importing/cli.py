@@ -14,9 +14,12 @@ printed and written into the log's ``meta["import"]``.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
+
+from ..usertext import arena_size
 
 __all__ = ["add_parser", "run"]
 
@@ -53,7 +56,8 @@ def add_parser(sub) -> None:
                                                                 "replace in) the .log's protocol")
     src.add_argument("--paparazzi-map", metavar="MAP.toml", help="with --paparazzi: which message field is which "
                      "channel, its unit and sonar yaw (default: the FINken's, finkensim/data/paparazzi_finken.toml)")
-    p.add_argument("--arena", required=True, metavar="W,L", help="arena width and length in m, e.g. 3,4")
+    p.add_argument("--arena", required=True, nargs="+", metavar="W,L",
+                   help="arena width and length in m: 3,4 or 3 4 (as in finkensim check)")
     p.add_argument("--sonar-yaw-deg", metavar="A,B,...",
                    help="mounting yaw of ultrasonic/0, /1, ... relative to the heading, degrees (front 0, left 90; "
                         "default with --paparazzi: the map's)")
@@ -131,7 +135,25 @@ def _recording(args):
     if args.tracking is None:
         raise _Usage("an input is required: --tracking TRACK.csv [--readings READ.csv], or --bag FILE "
                      "--topics TOPICS.toml, or --paparazzi LOG.data --tracking TRACK.csv")
+    _expect_kind("--tracking", args.tracking, "csv")
+    if args.readings is not None:
+        _expect_kind("--readings", args.readings, "readings")
     return read_csv(args.tracking, args.readings), None
+
+
+def _expect_kind(flag: str, path: str, kind: str) -> None:
+    """A _Usage error when the file given to ``flag`` is another kind of input (file_kind, as check and gap use)."""
+    from ..filekinds import FileKindError, describe_kind, file_kind
+
+    p = Path(path)
+    if not p.is_file():
+        return  # the reader names a missing file
+    try:
+        found = file_kind(p)
+    except (FileKindError, OSError):
+        return  # the reader names what is wrong with it
+    if found != kind and found in ("csv", "readings", "log"):
+        raise _Usage(f"{flag} {path!r} is a {describe_kind(found)}; expected a {describe_kind(kind)}")
 
 
 def run(args) -> int:
@@ -157,6 +179,24 @@ def _scenario(path: str):
         raise _Usage(f"--config {path}: {exc}") from None
 
 
+def _save(log, out: Path, save) -> None:
+    """Write ``log`` to ``out``, creating its folder as run, sweep and gap create theirs; an error names --out."""
+    from ..flightlog import FlightLogError
+
+    made = [d for d in (out.parent, *out.parent.parents) if not d.exists()]
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        save(log, out)
+    except (OSError, FlightLogError) as exc:
+        for d in made:  # nothing left behind
+            try:
+                d.rmdir()
+            except OSError:
+                break
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        raise _Usage(f"--out {str(out)!r}: cannot write the flight log ({why})") from None
+
+
 def _run(prog, args) -> int:
     import numpy as np
 
@@ -165,9 +205,12 @@ def _run(prog, args) -> int:
     from .align import build_flight
 
     t_start = time.perf_counter()
-    W, L = _floats("--arena", args.arena, 2)
-    if not (W > 0 and L > 0):
-        raise _Usage(f"--arena {args.arena!r}: expected a positive width and length in m")
+    try:
+        W, L = arena_size(args.arena)
+    except ValueError as exc:
+        raise _Usage(str(exc)) from None
+    if args.rate is not None and not (math.isfinite(args.rate) and args.rate > 0):
+        raise _Usage(f"--rate {args.rate!r}: expected a positive number of samples per second")
     yaw = np.radians(_floats("--sonar-yaw-deg", args.sonar_yaw_deg)) if args.sonar_yaw_deg else None
     clock = args.clock_offset
     if clock != "auto":
@@ -183,8 +226,10 @@ def _run(prog, args) -> int:
     out = Path(args.out)
     if not str(args.out).strip() or out.is_dir():
         raise _Usage(f"--out {args.out!r}: expected a file name for the flight log")
-    if not out.parent.exists():
-        raise _Usage(f"--out {args.out!r}: directory {str(out.parent)!r} does not exist")
+    if out.parent.exists() and not out.parent.is_dir():
+        raise _Usage(f"--out {args.out!r}: {str(out.parent)!r} is a file, not a directory")
+    if out.parent.is_dir() and not os.access(out.parent, os.W_OK | os.X_OK):  # before any work
+        raise _Usage(f"--out {args.out!r}: the directory {str(out.parent)!r} is not writable")
     try:
         rec, map_yaw = _recording(args)
         if yaw is None and map_yaw is not None:
@@ -192,9 +237,9 @@ def _run(prog, args) -> int:
         log = build_flight(rec, arena=(W, L), sonar_yaw=yaw, sonar_offset=args.sonar_offset, copter_radius=radius,
                            altitude=args.altitude, clock_offset=clock, rate=args.rate, max_offset=args.max_offset,
                            config=cfg)
-        save(log, out)
     except (FlightLogError, ConfigError) as exc:
         raise _Usage(str(exc)) from None
+    _save(log, out, save)
     imp = log.meta["import"]
     c = imp["clock_offset"]
     unc = f" ± {c['uncertainty']:.4f}" if "uncertainty" in c else ""

@@ -37,7 +37,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..usertext import suggest
+from ..usertext import loads_toml, suggest
 from .recording import RecordingError
 
 __all__ = ["TopicEntry", "TopicsSpec", "parse_topics", "ROLES"]
@@ -101,11 +101,15 @@ def parse_topics(source) -> TopicsSpec:
             p = Path(source)
             if not p.is_file():
                 raise RecordingError(f"topics file {str(p)!r} " + ("is not a file" if p.exists() else "does not exist"))
-            name, text = str(p), p.read_text()
+            try:
+                name, text = str(p), p.read_text(encoding="utf-8")
+            except UnicodeDecodeError as exc:
+                raise RecordingError(f"topics file {str(p)!r}: byte {exc.object[exc.start:exc.start + 1]!r} at "
+                                     f"offset {exc.start} is not UTF-8; expected a UTF-8 (TOML) text file") from None
         else:
             text = str(source)
         try:
-            data = tomllib.loads(text)
+            data = loads_toml(text)
         except tomllib.TOMLDecodeError as exc:
             raise RecordingError(f"{name}: not valid TOML ({exc})") from None
     default_time = data.get("time", "header")

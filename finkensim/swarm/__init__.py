@@ -67,9 +67,10 @@ from __future__ import annotations
 
 from ..sensors.ranging_kernels import ranging_batch, ranging_env
 from .kernel import swarm_rollout
-from .sim import SwarmSim, needs_sensors
+from .sim import SwarmSim, check_behaviour_sensors, needs_sensors
 from .state import KIND_ATTRACTION, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SensorReadings, \
     SwarmRecord, SwarmState
 
-__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "needs_sensors", "ranging_env",
+__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "needs_sensors",
+           "check_behaviour_sensors", "ranging_env",
            "ranging_batch", "swarm_rollout", "KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON"]

@@ -23,13 +23,36 @@ from .kernel import swarm_rollout
 from .state import KIND_ATTRACTION, KIND_CODES, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, NO_RANGING_ROWS, \
     RECORDABLE, SENSOR_OF, Recording, RunSpec, SensorReadings, SwarmRecord, SwarmState, concat_records
 
-__all__ = ["SwarmSim", "needs_sensors"]
+__all__ = ["SwarmSim", "needs_sensors", "check_behaviour_sensors"]
 
 
 def needs_sensors(kind) -> bool:
     """True when ``behaviour.kind`` (or a Python behaviour function) is a closed-loop controller that reads
     sensors; False for the open-loop ``"random_walk"`` and ``"hover"``."""
     return callable(kind) or kind not in OPEN_LOOP_BEHAVIOURS
+
+
+def _require_sensors(attraction: bool, wall_check_mode: int, enabled: dict, wall_check: str) -> None:
+    """Raise ConfigError if the behaviour (``attraction``: attraction-repulsion) or its wall check needs a sensor
+    that is not ``enabled`` (sensor name -> bool)."""
+    if attraction and not enabled["sonar"]:
+        raise ConfigError("behaviour.kind = 'attraction_repulsion' needs sonar.enabled = true")
+    if wall_check_mode != WALL_CHECK_NONE:
+        need = [("sonar.enabled", enabled["sonar"]), ("ranging.enabled", enabled["ranging"])]
+        if wall_check_mode == WALL_CHECK_SEQUENCE:
+            need.append(("imu.enabled", enabled["imu"]))
+        for key, ok in need:
+            if not ok:
+                raise ConfigError(f"behaviour.wall_check = {wall_check!r} needs {key} = true")
+
+
+def check_behaviour_sensors(cfg: Config, sensors: bool = True) -> None:
+    """Raise ConfigError if ``behaviour.kind`` or ``behaviour.wall_check`` of ``cfg`` needs a sensor that ``cfg``
+    disables: the check ``SwarmSim(cfg, sensors=sensors)`` makes, without building the models (cheap, for study
+    and sweep files)."""
+    enabled = {"sonar": bool(cfg.sonar.enabled), "ranging": bool(cfg.ranging.enabled), "imu": bool(cfg.imu.enabled)}
+    mode = WallCheckParams.from_config(cfg).mode if sensors else WALL_CHECK_NONE
+    _require_sensors(cfg.behaviour.kind == "attraction_repulsion", mode, enabled, cfg.behaviour.wall_check)
 
 
 class SwarmSim:
@@ -105,15 +128,8 @@ class SwarmSim:
                 raise ConfigError(f"sensors = False: behaviour {getattr(kind, '__name__', kind)!r} reads sensors; "
                                   f"expected one of {', '.join(map(repr, OPEN_LOOP_BEHAVIOURS))}")
             self.enabled = dict.fromkeys(self.enabled, False)
-        if self.kind_code == KIND_ATTRACTION and not self.enabled["sonar"]:
-            raise ConfigError("behaviour.kind = 'attraction_repulsion' needs sonar.enabled = true")
-        if sensors and self.wall_check.mode != WALL_CHECK_NONE:
-            need = [("sonar.enabled", self.enabled["sonar"]), ("ranging.enabled", self.enabled["ranging"])]
-            if self.wall_check.mode == WALL_CHECK_SEQUENCE:
-                need.append(("imu.enabled", self.enabled["imu"]))
-            for key, ok in need:
-                if not ok:
-                    raise ConfigError(f"behaviour.wall_check = {c.behaviour.wall_check!r} needs {key} = true")
+        _require_sensors(self.kind_code == KIND_ATTRACTION, self.wall_check.mode if sensors else WALL_CHECK_NONE,
+                         self.enabled, c.behaviour.wall_check)
         self._work = threading.local()  # per thread: the compiled rollout's ranging rows, kept between calls
 
     def __getstate__(self):

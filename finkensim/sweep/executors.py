@@ -82,11 +82,23 @@ def die_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, name="finkensim-parent-watch", daemon=True).start()
 
 
+def quiet_worker(parent_pid: int) -> None:
+    """Make this worker process ignore Ctrl-C and end with the sweep process ``parent_pid``: Ctrl-C in a terminal
+    reaches every process of the group, and the sweep (which stops its workers itself) is the one to answer it —
+    otherwise each worker prints its own KeyboardInterrupt traceback."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent_pid)
+
+
 def _worker_init(parent_pid: int | None = None) -> None:
-    """Initializer of a pool worker process: one numba thread, and end with the sweep process."""
+    """Initializer of a pool worker process: one numba thread, no Ctrl-C, and end with the sweep process."""
     _limit_threads()
     if parent_pid is not None:
-        die_with_parent(parent_pid)
+        quiet_worker(parent_pid)
 
 
 def execute(task: Mapping[str, Any]) -> dict[str, Any]:
@@ -221,7 +233,7 @@ def dask_client(workers: int, scheduler: str | None):
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                            silence_logs=logging.ERROR)
     client = Client(cluster)
-    client.run(die_with_parent, os.getpid())  # local workers are children of this process: end with it
+    client.run(quiet_worker, os.getpid())  # local workers are children of this process: end with it, no Ctrl-C
     return client, cluster
 
 

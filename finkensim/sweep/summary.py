@@ -1,5 +1,5 @@
-"""Statistics and the plot of a sweep's results: per combination, mean and Student-t confidence interval
-of every metric over its successful replicates."""
+"""Statistics and the plot of a sweep's results: per combination, mean and confidence interval of every
+metric over its successful replicates (a Student-t interval cut to the range the metric can take)."""
 from __future__ import annotations
 
 import math
@@ -17,7 +17,11 @@ def summarize(results, parameters: Sequence[str] | None = None, metrics: Sequenc
     """Per combination: n_runs, n_ok, n_error and ``<metric>_mean``, ``_ci_low``, ``_ci_high``.
 
     The interval is the Student-t confidence interval of the mean over successful runs with a
-    finite value: mean ± t_{(1+confidence)/2, n−1} · s / √n (NaN when n < 2).
+    finite value, mean ± t_{(1+confidence)/2, n−1} · s / √n (NaN when n < 2), intersected with the
+    range the metric can take (:class:`~finkensim.metrics.MetricInfo` ``low``, ``high``: fractions in
+    [0, 1], counts and distances >= 0, groups >= 1). The true mean lies in that range, so cutting the
+    interval there never removes it: the coverage stays that of the t interval, and a fraction's
+    interval no longer reaches below 0 or above 1.
     """
     import pandas as pd
     from scipy.special import stdtrit  # Student-t quantile (scipy.stats takes a second to import)
@@ -39,7 +43,9 @@ def summarize(results, parameters: Sequence[str] | None = None, metrics: Sequenc
                 half = float(stdtrit(v.size - 1, 0.5 + confidence / 2) * v.std(ddof=1) / math.sqrt(v.size))
             else:
                 half = math.nan
-            row.update({f"{m}_mean": mean, f"{m}_ci_low": mean - half, f"{m}_ci_high": mean + half})
+            info = METRICS[m]
+            row.update({f"{m}_mean": mean, f"{m}_ci_low": max(mean - half, info.low),
+                        f"{m}_ci_high": min(mean + half, info.high)})
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -124,5 +130,5 @@ def plot_summary(summary, parameters: Sequence[str], metrics: Sequence[str]):
             ax.legend(fontsize=7, title=parameters[-1], title_fontsize=7, loc="best")
     for j in range(n, nrows * ncols):
         axes[j // ncols][j % ncols].set_visible(False)
-    fig.suptitle("sweep summary: mean ± 95 % CI per combination", fontsize=10)
+    fig.suptitle("sweep summary: mean ± 95 % CI per combination (Student t, cut to each metric's range)", fontsize=10)
     return fig

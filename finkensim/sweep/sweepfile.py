@@ -58,8 +58,9 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..budget import check_memory, sweep_objects
 from ..config import SECTIONS, Config, ConfigError, check_key
-from ..usertext import strip_bom, suggest
+from ..usertext import loads_toml, suggest
 from ..metrics import METRICS
 from ..scenario import load_scenario
 from .checks import Parser, SweepError, field_kind, is_duration, is_number
@@ -103,7 +104,7 @@ def read_sweep_toml(source: str | Path) -> tuple[dict[str, Any], Path, str, str]
     else:
         text, name, base_dir = str(source), "sweep", Path.cwd()
     try:
-        data = tomllib.loads(strip_bom(text))
+        data = loads_toml(text)
     except tomllib.TOMLDecodeError as exc:
         raise SweepError(f"{name}: invalid TOML: {exc}") from None
     return data, base_dir, name, text
@@ -254,6 +255,10 @@ def random_design(p: Parser, table, seed) -> list[dict[str, Any]]:
     if "n_samples" not in table:
         raise p.error("[random] needs n_samples = <number of parameter samples>")
     n = p.integer("[random] n_samples", table.pop("n_samples"), 1)
+    try:  # before drawing: each sample becomes a combination
+        check_memory(sweep_objects(n), f"[random] n_samples = {n}", "lower n_samples")
+    except ConfigError as exc:
+        raise p.error(str(exc)) from None
     specs = p.flatten("random", table, lambda v: any(k in v for k in SPEC_KEYS))
     if not specs:
         raise p.error("[random] has no parameters: expected dotted keys -> {low, high} or {choices}")

@@ -23,8 +23,10 @@ def add_parser(sub) -> None:
         help="Optuna study over scenario parameters: batched Monte-Carlo trials, held-out check of the best",
         description="Run (or resume) the Optuna study of a study file (see finkensim.tune.studyfile) and write "
                     "DIR/study.db (SQLite; a killed study resumes with the same command), DIR/trials.csv, "
-                    "DIR/best.json, DIR/heldout.csv (defaults vs tuned on held-out environments, 95%% CIs) and "
-                    "DIR/figures/*.png. Several processes may run the same command at once to share the study.",
+                    "DIR/best.json, DIR/heldout.csv (defaults vs tuned on held-out environments, 95% CIs) and "
+                    "DIR/figures/*.png. Several processes may run the same command at once to share the study. "
+                    "Ctrl-C, SIGTERM or a killed process: the stopped trial is re-queued, and the same command "
+                    "resumes to the trials an uninterrupted study has; a changed study file is refused in an old DIR.",
     )
     p.add_argument("study", help="study TOML file ([base], [params], [objectives], [evaluation], n_trials, ...)")
     p.add_argument("--out", default="out/tune", metavar="DIR", help="output directory (default: %(default)s)")
@@ -73,15 +75,19 @@ def run(args) -> int:
           f"{', '.join(f'{m} ({d})' for m, d in spec.objectives)}; {spec.n_envs} environments x {spec.duration:g} s "
           f"per trial -> {out}")
     t0 = time.perf_counter()
+    from ..sweep import terminate_as_interrupt
+
     try:
-        res = run_study(spec, out, n_trials=args.trials, storage=args.storage, progress=not args.no_progress,
-                        heldout=not args.no_heldout, figures=not args.no_figures)
+        with terminate_as_interrupt() as caught:  # SIGTERM ends the study like Ctrl-C
+            res = run_study(spec, out, n_trials=args.trials, storage=args.storage, progress=not args.no_progress,
+                            heldout=not args.no_heldout, figures=not args.no_figures)
     except ConfigError as exc:
         return _error(prog, str(exc))
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; finished trials are kept in the storage, run the same command to resume",
-              file=sys.stderr)
-        return EXIT_INTERRUPTED
+        what = "terminated (SIGTERM)" if caught else "interrupted"
+        print(f"{prog}: {what}; finished trials are kept in the storage, the stopped trial is re-queued: run the "
+              "same command to resume", file=sys.stderr)
+        return 128 + caught[0] if caught else EXIT_INTERRUPTED
     print(f"{prog}: done in {time.perf_counter() - t0:.1f} s; selected trial {res.best_trial}: "
           + ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in res.best.items()))
     if res.comparison is not None:

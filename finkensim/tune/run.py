@@ -18,6 +18,7 @@ Outputs in DIR: ``study.db``, ``trials.csv``, ``best.json``, ``heldout.csv``, ``
 from __future__ import annotations
 
 import json
+import os
 import time
 import warnings
 from dataclasses import dataclass, replace
@@ -29,6 +30,7 @@ import numpy as np
 from ..atomic import write_atomic, write_text_atomic
 from ..config import ConfigError
 from .evaluate import compare, evaluate
+from .resume import INTERRUPTED, InterruptGate, check_same_study, mark_process, requeue_interrupted, reseeded_sampler
 from .storage import open_storage
 from .studyfile import StudySpec, parse_study
 
@@ -64,13 +66,19 @@ def storage_url(spec: StudySpec, out: Path, storage: str | None = None) -> str:
 
 
 def _sampler(spec: StudySpec):
+    """The study's sampler, seeded anew for each trial from the seed and the trials finished so far
+    (:func:`~.resume.reseeded_sampler`): a resumed study samples what an uninterrupted one does."""
     import optuna
 
     if spec.sampler == "random":
-        return optuna.samplers.RandomSampler(seed=spec.seed)
-    if spec.sampler == "nsga2":
-        return optuna.samplers.NSGAIISampler(seed=spec.seed, population_size=max(4, min(50, spec.n_trials // 4)))
-    return optuna.samplers.TPESampler(seed=spec.seed, n_startup_trials=max(2, min(10, spec.n_trials // 4)))
+        make = lambda seed: optuna.samplers.RandomSampler(seed=seed)  # noqa: E731
+    elif spec.sampler == "nsga2":
+        make = lambda seed: optuna.samplers.NSGAIISampler(  # noqa: E731
+            seed=seed, population_size=max(4, min(50, spec.n_trials // 4)))
+    else:
+        make = lambda seed: optuna.samplers.TPESampler(  # noqa: E731
+            seed=seed, n_startup_trials=max(2, min(10, spec.n_trials // 4)))
+    return reseeded_sampler(make, spec.seed)
 
 
 def _suggest(trial, spec: StudySpec) -> dict:
@@ -85,12 +93,22 @@ def _suggest(trial, spec: StudySpec) -> dict:
     return values
 
 
-def _objective(spec: StudySpec):
+def _objective(spec: StudySpec, gate: InterruptGate):
     metrics = [m for m, _ in spec.objectives]
 
     def objective(trial):
+        mark_process(trial)
         values = _suggest(trial, spec)
-        m = evaluate(spec.config(values), spec.n_envs, spec.eval_seed, spec.duration, metrics)
+        try:
+            with gate.trial():
+                m = evaluate(spec.config(values), spec.n_envs, spec.eval_seed, spec.duration, metrics)
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: FAIL, re-queued when the study resumes
+            trial.set_user_attr(INTERRUPTED, True)
+            raise
+        except ConfigError as exc:  # one line, no traceback (Optuna's log is off); the trial is FAIL
+            warnings.warn(f"trial {trial.number} failed ({', '.join(f'{k} = {v!r}' for k, v in values.items())}): "
+                          f"{exc}", RuntimeWarning, stacklevel=2)
+            raise
         out = []
         for name in metrics:
             x = m[name][np.isfinite(m[name])]
@@ -107,7 +125,7 @@ def _open_study(url: str, spec: StudySpec, directions: list[str], attempts: int 
     the process that created the study gets ``created`` True (the storage's unique study name decides)."""
     import optuna
     from optuna.exceptions import DuplicatedStudyError
-    from sqlalchemy.exc import DBAPIError
+    from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 
     for attempt in range(attempts):
         try:
@@ -119,10 +137,19 @@ def _open_study(url: str, spec: StudySpec, directions: list[str], attempts: int 
                                            directions=directions), True
             except DuplicatedStudyError:
                 return optuna.load_study(study_name=spec.study_name, storage=rdb, sampler=_sampler(spec)), False
-        except DBAPIError:
-            if attempt == attempts - 1:
-                raise
+        except DBAPIError as exc:
+            if attempt == attempts - 1 or "unable to open" in str(exc):  # a race for a new file retries
+                raise _storage_error(url, exc) from None
             time.sleep(0.2 * (attempt + 1))
+        except (SQLAlchemyError, ImportError, OSError, ValueError) as exc:  # bad URL, missing driver, no such dir
+            raise _storage_error(url, exc) from None
+
+
+def _storage_error(url: str, exc: BaseException) -> ConfigError:
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return ConfigError(f"storage {url!r} cannot be opened ({type(exc).__name__}: {first}); expected an SQLite file "
+                       "in a writable directory or an RDB URL such as postgresql://user@host/db with its driver "
+                       "installed")
 
 
 def _enqueue_defaults(study, spec: StudySpec) -> None:
@@ -192,6 +219,51 @@ def _figures(study, spec: StudySpec, out: Path) -> list[Path]:
     return written
 
 
+def _prepare(spec: StudySpec, out: Path, storage: str | None):
+    """(study, created): ``out`` created, the storage opened, the study checked to be the same study as any
+    already stored there (:func:`~.resume.check_same_study`) and only then ``out/study.toml`` written. On a
+    refusal nothing is left behind: an ``out`` this call created is removed again."""
+    import shutil
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a file: expected a directory")
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--out {str(out)!r}: cannot create the directory ({exc.strerror or exc})") from None
+    try:
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise ConfigError(f"--out {str(out)!r}: the directory is not writable")
+        url = storage_url(spec, out, storage)
+        directions = [d for _, d in spec.objectives]
+        st, created = _open_study(url, spec, directions)
+        if [d.name.lower() for d in st.directions] != directions:
+            raise ConfigError(f"storage {url!r} holds a study {spec.study_name!r} with directions "
+                              f"{[d.name.lower() for d in st.directions]}, not {directions}: use another study_name "
+                              "or --out")
+        check_same_study(st, spec, created, f"storage {url!r}")
+        if spec.text is not None:
+            write_text_atomic(out / "study.toml", spec.text)
+    except (ConfigError, OSError) as exc:
+        if made:
+            shutil.rmtree(out, ignore_errors=True)
+        if isinstance(exc, OSError):
+            raise ConfigError(f"--out {str(out)!r}: cannot write ({exc.strerror or exc})") from None
+        raise
+    return st, created
+
+
+def _progress_bar(spec: StudySpec, todo: int):
+    """A labelled trial bar; its first trial compiles the kernels (its rate and ETA settle from the second)."""
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=todo, desc=f"tune trials ({spec.n_envs} envs x {spec.duration:g} s; the first compiles)",
+                unit="trial", file=sys.stderr, smoothing=0.5)
+
+
 def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_trials: int | None = None,
               storage: str | None = None, progress: bool = True, heldout: bool = True,
               figures: bool = True) -> StudyResult:
@@ -216,25 +288,26 @@ def run_study(study: StudySpec | str | Path, out: str | Path = "out/tune", *, n_
             raise ConfigError(f"n_trials = {n_trials!r}: expected a positive integer")
         spec = replace(spec, n_trials=n_trials)
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"out = {str(out)!r}: exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    if spec.text is not None:
-        write_text_atomic(out / "study.toml", spec.text)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    url = storage_url(spec, out, storage)
-    directions = [d for _, d in spec.objectives]
-    st, created = _open_study(url, spec, directions)
-    if [d.name.lower() for d in st.directions] != directions:
-        raise ConfigError(f"storage {url!r} holds a study {spec.study_name!r} with directions "
-                          f"{[d.name.lower() for d in st.directions]}, not {directions}: use another study_name or --out")
+    st, created = _prepare(spec, out, storage)
     if created:  # once, by the process that created the study
         _enqueue_defaults(st, spec)
+    requeue_interrupted(st)
     done = len(st.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
     todo = max(0, spec.n_trials - done)
     if todo:
-        st.optimize(_objective(spec), n_trials=todo, show_progress_bar=progress, catch=(ConfigError,),
-                    callbacks=[MaxTrialsCallback(spec.n_trials, states=(TrialState.COMPLETE,))])
+        optuna.logging.set_verbosity(optuna.logging.ERROR)  # failed trials: our one-line warning, no traceback
+        bar = _progress_bar(spec, todo) if progress else None
+        callbacks = [MaxTrialsCallback(spec.n_trials, states=(TrialState.COMPLETE,))]
+        if bar is not None:
+            callbacks.append(lambda study, trial: bar.update(1))
+        try:
+            with InterruptGate() as gate:  # Ctrl-C / SIGTERM act inside a trial's evaluation, not in Optuna's records
+                st.optimize(_objective(spec, gate), n_trials=todo, catch=(ConfigError,),
+                            callbacks=[*callbacks, gate.check])
+        finally:
+            if bar is not None:
+                bar.close()
     trials = st.trials_dataframe()
     write_atomic(out / "trials.csv", lambda tmp: trials.to_csv(tmp, index=False))
     best_trial = select_best(st, spec)

@@ -110,8 +110,32 @@ def _param(p: Parser, key: str, spec) -> Param:
     return Param(key, kind, low=lo, high=hi, log=log)
 
 
-def _check_params_on_base(p: Parser, base: Config, params: tuple[Param, ...]) -> None:
-    """Every end of every range (and every choice) must make a valid config."""
+MAX_CORNERS = 512
+"""Combinations of range ends and choices checked together (more: a fixed sample of them, plus every value alone)."""
+
+
+def _corners(params: tuple[Param, ...]) -> list[dict]:
+    """Combinations of every range's ends and every choice (all of them up to :data:`MAX_CORNERS`, else a fixed
+    random sample of that many)."""
+    import itertools
+
+    import numpy as np
+
+    axes = [[(prm.key, v) for v in (prm.choices if prm.choices is not None else (prm.low, prm.high))]
+            for prm in params]
+    total = int(np.prod([len(a) for a in axes], dtype=float))
+    if total <= MAX_CORNERS:
+        return [dict(c) for c in itertools.product(*axes)]
+    rng = np.random.default_rng(0)
+    return [{k: v for k, v in (a[int(rng.integers(len(a)))] for a in axes)} for _ in range(MAX_CORNERS)]
+
+
+def _check_params_on_base(p: Parser, base: Config, params: tuple[Param, ...], n_envs: int, duration: float) -> None:
+    """Every end of every range and every choice must make a valid config alone, and every combination of them
+    (:func:`_corners`) one that a trial can fly (a behaviour's sensors switched on) in the memory available."""
+    from ..budget import check_memory, episode_arrays
+    from ..swarm import check_behaviour_sensors, needs_sensors
+
     for prm in params:
         values = prm.choices if prm.choices is not None else (prm.low, prm.high)
         for v in values:
@@ -119,6 +143,16 @@ def _check_params_on_base(p: Parser, base: Config, params: tuple[Param, ...]) ->
                 base.replace({prm.key: v})
             except ConfigError as exc:
                 raise p.error(f"[params] {prm.key}: {exc}") from None
+    for corner in _corners(params):
+        where = ", ".join(f"{k} = {v!r}" for k, v in corner.items())
+        try:
+            cfg = base.replace(corner)
+            check_behaviour_sensors(cfg, sensors=needs_sensors(cfg.behaviour.kind))
+        except ConfigError as exc:
+            raise p.error(f"[params] the combination {where} cannot be flown: {exc}; narrow the ranges or choices, "
+                          "or change [base]") from None
+        check_memory(episode_arrays(cfg, duration, n_envs), f"a trial of {n_envs} environments x {duration:g} s "
+                     f"({where})", "lower [evaluation] n_envs / heldout_envs or duration")
 
 
 def parse_study(source: str | Path | Mapping[str, Any], base_dir: str | Path | None = None) -> StudySpec:
@@ -154,7 +188,6 @@ def parse_study(source: str | Path | Mapping[str, Any], base_dir: str | Path | N
         raise p.error(f"params = {table!r}: expected a table [params] of dotted keys -> {{low, high}} or {{choices}}")
     specs = p.flatten("params", table, lambda v: any(k in v for k in SPEC_KEYS))
     params = tuple(_param(p, k, v) for k, v in specs.items())
-    _check_params_on_base(p, base, params)
 
     objs = data["objectives"]
     if not isinstance(objs, Mapping) or not objs:
@@ -188,6 +221,8 @@ def parse_study(source: str | Path | Mapping[str, Any], base_dir: str | Path | N
     if heldout_seed == eval_seed:
         raise p.error(f"[evaluation] heldout_seed = {heldout_seed}: expected a seed different from seed = {eval_seed} "
                       "(held-out environments must not be the tuning environments)")
+
+    _check_params_on_base(p, base, params, max(n_envs, heldout_envs), float(duration))
 
     compare = {}
     table = data.get("compare", {})

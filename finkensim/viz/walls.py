@@ -7,7 +7,12 @@ from ..analysis import binned_median, plate_distances, trajectory_arrays
 from ..arena import target_angles
 from .inputs import new_axes, plate_label, resolve_arena
 
-__all__ = ["plot_wall_response", "plot_plate_timeseries"]
+__all__ = ["plot_wall_response", "plot_plate_timeseries", "START_TRANSIENT_S"]
+
+START_TRANSIENT_S = 2.0
+"""Seconds after the start drawn apart in :func:`plot_wall_response`: the plates start at rest, and those of
+copters placed near a wall need about 1.5 s to swing up (default scenario, seed 0: 0.4-26 deg at d 0.15-0.2 m,
+motor on for 0-1.7 s); left in, they pull the binned median far below the target there."""
 
 
 def plot_wall_response(arena, traj=None, *, env=None, radius: float | None = None, ax=None,
@@ -18,7 +23,11 @@ def plot_wall_response(arena, traj=None, *, env=None, radius: float | None = Non
     with the threshold marked, the largest angle the hinge motor can hold against gravity when
     that is below the targets (e.g. ``profile = "seed"``), and, given a trajectory, the simulated
     (distance, angle) pairs of every plate and sample (a random subset of ``max_points``) with
-    their binned median. The simulated angles lag the target: plates need time to swing.
+    their binned median. The simulated angles lag the target: plates need time to swing. The figure
+    says why samples leave the target: the first :data:`START_TRANSIENT_S` s (plates start at rest,
+    drawn grey, left out of the median), the contact limit asin(d / lever) (a plate cannot swing
+    through a copter), and the hinge controller's overshoot above the target (its PI term carries
+    the plate past the target for a few seconds after it swung up; noted with the largest excess).
 
     Args:
         arena: an Arena or a World.
@@ -38,26 +47,49 @@ def plot_wall_response(arena, traj=None, *, env=None, radius: float | None = Non
     d_max = 1.6 * thr if d_max is None else float(d_max)
     fig, ax = new_axes(ax, (6.4, 4.2))
 
+    excess = None
     if traj is not None:
-        _, pose, theta = trajectory_arrays(traj, env)
-        d = plate_distances(arena, pose, radius).ravel()
-        th = np.rad2deg(theta).ravel()
+        t, pose, theta = trajectory_arrays(traj, env)
+        d = plate_distances(arena, pose, radius)
+        start = np.broadcast_to((np.asarray(t) - float(np.asarray(t).reshape(-1)[0]) < START_TRANSIENT_S)
+                                .reshape((-1,) + (1,) * (d.ndim - 1)), d.shape).ravel()
+        d, th = d.ravel(), np.rad2deg(theta).ravel()
         keep = d <= d_max
-        d, th = d[keep], th[keep]
+        d, th, start = d[keep], th[keep], start[keep]
         if d.size:
             rng = np.random.default_rng(0)
-            idx = rng.choice(d.size, size=max_points, replace=False) if d.size > max_points else slice(None)
-            ax.scatter(d[idx], th[idx], s=5, alpha=0.18, color="tab:blue", lw=0, zorder=2,
+            idx = rng.choice(d.size, size=max_points, replace=False) if d.size > max_points else np.arange(d.size)
+            late, early = idx[~start[idx]], idx[start[idx]]
+            ax.scatter(d[late], th[late], s=5, alpha=0.18, color="tab:blue", lw=0, zorder=2,
                        label="simulated plates (samples)")
+            if early.size:
+                ax.scatter(d[early], th[early], s=5, alpha=0.35, color="0.55", lw=0, zorder=2,
+                           label=f"first {START_TRANSIENT_S:g} s (plates start at rest)")
             edges = np.linspace(0.0, d_max, 33)
-            centres, medians = binned_median(d, th, edges, max(20, d.size // 2000))  # skip sparsely sampled bins
+            dl, tl = d[~start], th[~start]
+            centres, medians = binned_median(dl, tl, edges, max(20, dl.size // 2000))  # skip sparse bins
             if centres:
                 ax.plot(centres, medians, "o-", ms=3.5, lw=1.4, color="tab:blue", zorder=4,
-                        label="simulated (binned median)")
+                        label=f"simulated (binned median, after {START_TRANSIENT_S:g} s)")
+            peak = float(np.rad2deg(target_angles(np.linspace(0.0, thr, 400), thr, hp.max_amplitude)).max())
+            if (tl > peak + 1.0).any():  # above every target the law can ask for: overshoot, not lag
+                excess = (float(tl.max()), peak)
 
     grid = np.linspace(0.0, d_max, 400)
     target = np.rad2deg(target_angles(grid, thr, hp.max_amplitude))
     ax.plot(grid, target, color="tab:red", lw=2.2, zorder=5, label="amplitude law target")
+    if arena.lever > 0:
+        dc = np.linspace(0.0, min(d_max, arena.lever), 200)
+        contact = np.rad2deg(np.arcsin(dc / arena.lever))
+        show = contact <= 1.15 * max(target.max(), 1e-9)
+        ax.plot(dc[show], contact[show], color="tab:green", ls="-.", lw=1.3, zorder=3,
+                label=f"contact limit asin(d / {arena.lever:g} m): plate touches the copter")
+    if excess is not None:
+        ax.annotate(f"above the law's {excess[1]:.1f}° peak (up to {excess[0]:.1f}°): the hinge controller\n"
+                    "overshoots (its integral term carries the plate past the target after it swung up);\n"
+                    "above the curve near the threshold: plates lag as a copter leaves",
+                    xy=(0.02, 0.02), xycoords="axes fraction", ha="left", va="bottom", fontsize=7, color="0.2",
+                    bbox=dict(boxstyle="round,pad=0.3", fc="white", ec="0.8", alpha=0.9), zorder=6)
     ax.axvline(thr, color="0.3", ls="--", lw=1.0, zorder=3)
     ax.annotate(f"threshold {thr:g} m", xy=(thr, 0.5), xycoords=("data", "axes fraction"), rotation=90,
                 xytext=(-3, 0), textcoords="offset points", ha="right", va="center", fontsize=8, color="0.3")
