@@ -14,7 +14,8 @@ for N ∈ {4, 10, 32, 100} copters × B ∈ {1, 64, 1024} environments;
 (c) **RL environments** (``benchmarks.envs_bench``): env-steps/s of the Gymnasium vector env and the
     PettingZoo env at N = 10, B ∈ {1, 64, 1024}, sensors on;
 (d) **the full workload against N** (``benchmarks.engine_scaling``): µs per copter-step of ``SwarmSim`` at the
-    lab's density for N ∈ {10, 100, 1 000, 10 000}, with the engine's cell grid and (to 1 000) the brute force.
+    lab's density for N ∈ {10, 100, 1 000, 10 000}, with the engine's cell grid and (to 1 000) the brute force;
+(e) **diagnosis** (``benchmarks.diagnosis``): CPU s of warm gap-validate trials, examples/gap_timing.py.
 
 **Timing.** Each implementation is warmed up (compiled) first, the number of steps per timed call
 is calibrated to ≈ ``--seconds``, then the implementations of one configuration are timed in turn,
@@ -397,9 +398,9 @@ def report(res: dict) -> str:
             for k in prof:
                 L.append(f"| {'&nbsp;&nbsp;' * k['depth']}{k['name']} | {k['seconds']:.2f} | {k['own_seconds']:.2f} |")
     L.append("")
-    sc = res.get("scaling")
-    if sc:
-        L.append(sc["markdown"])
+    for section in ("scaling", "diagnosis"):
+        if res.get(section):
+            L.append(res[section]["markdown"])
     es = res.get("engine_scaling")
     if es:
         L.append("")
@@ -432,6 +433,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-finken", action="store_true", help="skip workload (b)")
     ap.add_argument("--no-envs", action="store_true", help="skip (c), the RL environments")
     ap.add_argument("--no-engine-scaling", action="store_true", help="skip (d), the full workload against N")
+    ap.add_argument("--no-diagnosis", action="store_true", help="skip (e), the diagnosis")
     a = ap.parse_args(argv)
 
     import numba
@@ -482,6 +484,9 @@ def main(argv=None) -> int:
         numba.set_num_threads(1)
         res["engine_scaling"] = engine_scaling.run(log=log, out_dir=out)
     numba.set_num_threads(max_threads)
+    if not a.quick and not a.no_diagnosis:
+        from . import diagnosis
+        res["diagnosis"] = diagnosis.run(log=log)
     meta["load_end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
     md = report(res)
     (out / "bench.md").write_text(md)
