@@ -5,7 +5,7 @@
   thread, as the process-pool workers of ``gap-validate --executor process`` run them. Measured: CPU seconds
   (``time.process_time``) of each trial after a warm-up trial (the kernels compiled or loaded first), and the
   verdict (right / wrong), so a change that cuts time also shows whether it changed an answer.
-* **The pairs matrix**, estimated: (median trial CPU) × the matrix's trials ÷ the machine's cores.
+* **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials ÷ the machine's cores.
 * **examples/gap_timing.py** (``finkensim gap`` on 10 copters × 10 min, in a subprocess): wall-clock seconds and peak
   resident memory, as the example prints them.
 
@@ -15,7 +15,10 @@ with them. No test asserts a time.
 from __future__ import annotations
 
 import argparse
+import cProfile
+import io
 import os
+import pstats
 import re
 import statistics
 import subprocess
@@ -39,25 +42,37 @@ TARGET_GAP_TIMING = 5.0  # s, examples/gap_timing.py
 WARMUP = ("wall_bulge+sonar_bias", 5)
 
 
-def time_trials(trials=TRIALS, log=print) -> list[dict]:
-    """CPU seconds and verdict of each trial, warm, on one numba thread (the thread count is restored)."""
+def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURATION, threads: int = 1,
+                profile: bool = False) -> list[dict]:
+    """CPU seconds and verdict of each (case, seed) trial of :data:`FLIGHTS` flights × ``duration`` s, after the
+    ``warmup`` trial (None: none), on ``threads`` numba threads (the thread count is restored). ``profile``: also
+    each trial's 15 costliest functions by CPU time (cProfile on the CPU clock), as text under "profile"."""
     import numba
 
     from finkensim.gap.validate import run_case
 
     before = numba.get_num_threads()
-    numba.set_num_threads(1)
+    numba.set_num_threads(threads)
     rows = []
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            run_case(*WARMUP, FLIGHTS, DURATION, conventions="random")
+            if warmup is not None:
+                run_case(*warmup, FLIGHTS, duration, conventions="random")
             for case, seed in trials:
+                prof = cProfile.Profile(time.process_time) if profile else None
                 t0 = time.process_time()
-                row = run_case(case, seed, FLIGHTS, DURATION, conventions="random")
+                if prof is not None:
+                    prof.enable()
+                row = run_case(case, seed, FLIGHTS, duration, conventions="random")
                 cpu = time.process_time() - t0
                 rows.append(dict(case=case, seed=seed, cpu_s=cpu, correct=bool(row["correct"]),
-                                 effects=list(row["effects"])))
+                                 effects=list(row["effects"]), threads=threads))
+                if prof is not None:
+                    prof.disable()
+                    text = io.StringIO()
+                    pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(15)
+                    rows[-1]["profile"] = text.getvalue()
                 log(f"diagnosis: {case} seed {seed}: {cpu:.1f} s CPU, {'right' if row['correct'] else 'wrong'}")
     finally:
         numba.set_num_threads(before)
@@ -78,9 +93,9 @@ def gap_timing(duration: float = 600.0) -> dict:
 def run(log=print, with_gap_timing: bool = True) -> dict:
     load0 = os.getloadavg()
     trials = time_trials(log=log)
-    med = statistics.median(r["cpu_s"] for r in trials)
-    res = dict(trials=trials, median_cpu_s=med, cores=os.cpu_count() or 1,
-               matrix_hours=med * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600)
+    cpu = [r["cpu_s"] for r in trials]
+    res = dict(trials=trials, median_cpu_s=statistics.median(cpu), cores=os.cpu_count() or 1,
+               matrix_hours=statistics.mean(cpu) * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600)
     if with_gap_timing:
         log("diagnosis: examples/gap_timing.py (10 copters x 10 min)")
         res["gap_timing"] = gap_timing()
@@ -102,7 +117,7 @@ def markdown(res: dict) -> str:
           f"| warm validation trial ≤ {TARGET_TRIAL_CPU:g} s of CPU (median) | {res['median_cpu_s']:.1f} s | "
           f"{'yes' if res['median_cpu_s'] <= TARGET_TRIAL_CPU else '**no**'} |",
           f"| pairs matrix ({PAIRS_MATRIX_TRIALS} trials) on {res['cores']} cores ≤ {TARGET_MATRIX_HOURS:g} h "
-          f"(median × trials ÷ cores) | {res['matrix_hours']:.1f} h | "
+          f"(mean trial above × trials ÷ cores) | {res['matrix_hours']:.1f} h | "
           f"{'yes' if res['matrix_hours'] <= TARGET_MATRIX_HOURS else '**no**'} |"]
     if gt is None:
         L.append("| examples/gap_timing.py ≤ 5 s | — | not measured |")
@@ -118,8 +133,21 @@ def markdown(res: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-gap-timing", action="store_true", help="only the validation trials")
+    ap.add_argument("--trials", nargs="+", default=None, metavar="CASE:SEED",
+                    help="time these trials only (the first once more before, as the warm-up), e.g. latency:51")
+    ap.add_argument("--threads", type=int, default=1, help="numba threads of the trials (default 1)")
+    ap.add_argument("--profile", action="store_true", help="with --trials: print where each trial's CPU goes")
     a = ap.parse_args(argv)
-    print(run(log=lambda m: print(m, file=sys.stderr, flush=True), with_gap_timing=not a.no_gap_timing)["markdown"])
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    if a.trials:
+        trials = [(t.rsplit(":", 1)[0], int(t.rsplit(":", 1)[1])) for t in a.trials]
+        for r in time_trials(trials, log=log, warmup=trials[0], threads=a.threads, profile=a.profile):
+            print(f"{r['case']} seed {r['seed']}: {r['cpu_s']:.2f} s CPU on {r['threads']} numba thread(s) "
+                  f"(OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}), "
+                  f"{'right' if r['correct'] else 'wrong'}; load average {os.getloadavg()[0]:.1f}")
+            print(r.get("profile", ""), end="")
+        return 0
+    print(run(log=log, with_gap_timing=not a.no_gap_timing)["markdown"])
     return 0
 
 

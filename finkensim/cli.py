@@ -342,6 +342,7 @@ def _add_gap_validate(sub) -> None:
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
+    os.environ.setdefault("OMP_WAIT_POLICY", "passive")  # as in cmd_gap: serial trials run many short kernels
     from .atomic import write_atomic
     from .gap.validate import CASES, expand_cases, get_case
     from .gap.validate_tables import confusion

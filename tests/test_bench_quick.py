@@ -163,3 +163,20 @@ def test_breakdown_times_every_kernel_and_reports_against_the_comparison():
                numpy=dict(env_steps_per_s=1e4, copter_steps_per_s=1e5, peak_bytes_per_env=1.0), ratio_numpy=30.0)
     md = report(dict(meta=meta, compare=[cmp], breakdown=dict(r, N=10)))
     assert "takes 5.00 µs per env-step on one thread" in md and f"3× would allow 15.00 µs" in md
+
+
+def test_diagnosis_section_reports_trials_and_targets():
+    """benchmarks.diagnosis times a trial (CPU s, verdict) and renders the section with its targets (no timing
+    assertion: whether a target is met depends on the machine)."""
+    from benchmarks import diagnosis
+
+    rows = diagnosis.time_trials((("null", 3),), log=lambda m: None, warmup=None, duration=20.0)
+    assert [(r["case"], r["seed"]) for r in rows] == [("null", 3)]
+    assert rows[0]["cpu_s"] > 0 and isinstance(rows[0]["correct"], bool)
+    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6,
+               gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5))
+    md = diagnosis.markdown(res)
+    assert md.startswith("## Diagnosis") and "| null | 3 |" in md
+    assert "pairs matrix (1280 trials) on 2 cores ≤ 1 h" in md and "| 0.5 h | yes |" in md
+    assert "4.0 s, peak 0.50 GB | yes |" in md
+    assert "not measured" in diagnosis.markdown({**res, "gap_timing": None})
