@@ -46,7 +46,7 @@ def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURAT
                 profile: bool = False) -> list[dict]:
     """CPU seconds and verdict of each (case, seed) trial of :data:`FLIGHTS` flights × ``duration`` s, after the
     ``warmup`` trial (None: none), on ``threads`` numba threads (the thread count is restored). ``profile``: also
-    each trial's 15 costliest functions by CPU time (cProfile on the CPU clock), as text under "profile"."""
+    each trial's 30 costliest functions by cumulative CPU time (cProfile on the CPU clock), text under "profile"."""
     import numba
 
     from finkensim.gap.validate import run_case
@@ -71,7 +71,7 @@ def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURAT
                 if prof is not None:
                     prof.disable()
                     text = io.StringIO()
-                    pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(15)
+                    pstats.Stats(prof, stream=text).sort_stats("cumulative").print_stats(30)
                     rows[-1]["profile"] = text.getvalue()
                 log(f"diagnosis: {case} seed {seed}: {cpu:.1f} s CPU, {'right' if row['correct'] else 'wrong'}")
     finally:
