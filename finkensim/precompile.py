@@ -1,6 +1,6 @@
 """Compile a configuration's kernels ahead of its first run, in parallel processes, into the shared cache.
 
-    finkensim compile [scenario.toml] [--workers N]
+    finkensim compile [scenario.toml] [--workers N] [--gap]
 
 numba compiles a kernel at its first call and keeps it in the on-disk cache (:mod:`finkensim.numba_cache`), so the
 first ``finkensim run`` or :class:`~finkensim.swarm.SwarmSim` rollout of a fresh install waits for the compiler.
@@ -16,6 +16,9 @@ The jobs:
   initial placement);
 * ``flight log and figures``: :func:`~finkensim.scenario.flight_log` with the error-free values and the wall figure of
   ``finkensim run`` on a two-sample record of zeros (the ideal ranging table and readings, the plate distances).
+
+``finkensim compile --gap`` adds the diagnosis's kernels (:func:`finkensim.gap.warmup.compile_diagnosis`: a
+diagnosis of two short simulated flights), so that the first ``finkensim gap`` does not compile either.
 """
 from __future__ import annotations
 
@@ -88,8 +91,9 @@ JOBS: dict[str, Callable[[Config], None]] = {
 }
 
 
-def run_job(cfg: Config, job: str) -> JobResult:
-    """Run :data:`JOBS` ``[job]`` on ``cfg`` in this process; what it compiled (warnings of the tiny inputs muted)."""
+def run_job(cfg: Config, job: str, calls: Callable[[Config], None]) -> JobResult:
+    """Run the job named ``job``, ``calls(cfg)``, in this process; what it compiled (warnings of the tiny inputs
+    muted)."""
     import warnings
 
     from .compiletime import compile_timer
@@ -97,20 +101,21 @@ def run_job(cfg: Config, job: str) -> JobResult:
     t0 = time.perf_counter()
     with warnings.catch_warnings(), compile_timer() as jit:
         warnings.simplefilter("ignore")
-        JOBS[job](cfg)
+        calls(cfg)
     compiled = tuple(CompiledKernel(r["name"], r["seconds"]) for r in jit.profile(max_depth=0, min_seconds=0.0))
     return JobResult(job, time.perf_counter() - t0, compiled)
 
 
-def compile_kernels(cfg: Config, workers: int = 2) -> Iterator[JobResult]:
-    """Compile ``cfg``'s kernels into the shared cache, :data:`JOBS` on ``workers`` fresh processes (spawned: a
-    forked numba runtime is not safe); yields each job's :class:`JobResult` as it finishes. ``workers=0`` runs
-    them one after another in this process."""
+def compile_kernels(cfg: Config, workers: int = 2, jobs: dict | None = None) -> Iterator[JobResult]:
+    """Compile ``cfg``'s kernels into the shared cache: ``jobs`` (name → top-level function of the config; default
+    :data:`JOBS`) on ``workers`` fresh processes (spawned: a forked numba runtime is not safe); yields each job's
+    :class:`JobResult` as it finishes. ``workers=0`` runs them one after another in this process."""
+    jobs = JOBS if jobs is None else jobs
     if workers == 0:
-        for job in JOBS:
-            yield run_job(cfg, job)
+        for job, calls in jobs.items():
+            yield run_job(cfg, job, calls)
         return
-    with ProcessPoolExecutor(max_workers=min(workers, len(JOBS)), mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(run_job, cfg, job) for job in JOBS]
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=get_context("spawn")) as pool:
+        futures = [pool.submit(run_job, cfg, job, calls) for job, calls in jobs.items()]
         for future in as_completed(futures):
             yield future.result()

@@ -7,8 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 from finkensim.numba_cache import source_hash
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -120,11 +118,12 @@ def test_progress_bar_says_compiling_instead_of_an_eta():
     assert COMPILING == "compiling (first run only)…"
 
 
-@pytest.mark.parametrize("workers", [0])
-def test_compile_command_runs_its_jobs(workers, capsys):
-    """finkensim compile in this process (the suite's cache): one line per job or compiled kernel, exit 0."""
+def test_compile_command_runs_its_jobs(capsys):
+    """finkensim compile --gap in this process (the suite's cache): one line per job or compiled kernel, exit 0."""
     from finkensim.cli import main
 
-    assert main(["compile", "--workers", str(workers)]) == 0
+    assert main(["compile", "--workers", "0", "--gap"]) == 0
     out = capsys.readouterr().out
-    assert "closed loop" in out and "flight log and figures" in out and "kernels compiled in" in out
+    assert "3 jobs (closed loop, flight log and figures, gap diagnosis)" in out and "kernels compiled in" in out
+    assert main(["compile", "--workers", "-1"]) == 2
+    assert "--workers -1: expected 0 (this process) or a positive number" in capsys.readouterr().err
