@@ -9,14 +9,14 @@ DEMO_STAMP := $(VENV)/.installed-demo
 # the sources, shared by make, the CLI, notebooks and plain Python; NUMBA_CACHE_DIR overrides it)
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test notebooks bench bench-peers clean venv
+.PHONY: demo test docs screenshots notebooks bench bench-peers clean venv
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -e ".[test,docs]"
 	touch $(STAMP) $(DEMO_STAMP)
 
 $(DEMO_STAMP): pyproject.toml
@@ -36,6 +36,19 @@ TEST_WORKERS ?= 2
 test: $(STAMP)
 	OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-passive} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal \
 		tests --nbmake notebooks
+	$(MAKE) docs
+
+# The documentation site (docs/conf.py): every warning is an error, so a broken cross-reference in a page or a
+# docstring fails the build. Notebooks are rendered with their committed outputs, never executed here.
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -b html -W --keep-going -n -q docs docs/_build/html
+	@echo "docs: open docs/_build/html/index.html"
+
+# Screenshots of the built site for docs/contributing.md (headless Chromium from the system's packages; not in
+# `make test`): the landing page and one API page, into docs/img/.
+screenshots: docs
+	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
+	$(BIN)/python docs/screenshots.py --browser chromium --site docs/_build/html --out docs/img
 
 # re-execute the notebooks and write their outputs back (commit them: figures show on the repository page)
 notebooks: $(STAMP)
@@ -55,4 +68,4 @@ bench-peers:
 	$(PEERS_VENV)/bin/python -c "import torch, vmas; print('VMAS', vmas.__version__, 'on torch', torch.__version__, 'ready for make bench')"
 
 clean:
-	rm -rf $(VENV) .numba_cache out .pytest_cache .hypothesis
+	rm -rf $(VENV) .numba_cache out .pytest_cache .hypothesis docs/_build docs/api/generated

@@ -1,4 +1,4 @@
-"""Virtual-ranging numbers quoted in README.md ("Sensor models"), reproducible with one command:
+"""Virtual-ranging numbers quoted in docs/user-guide/sensors.md, reproducible with one command:
 
     .venv/bin/python examples/ranging_stats.py            # 200 000 draws per distance (≈ 5 s)
     .venv/bin/python examples/ranging_stats.py -n 1000000

@@ -1,4 +1,4 @@
-"""Sonar and IMU numbers quoted in README.md ("Sensor models"), reproducible with one command:
+"""Sonar and IMU numbers quoted in docs/user-guide/sensors.md, reproducible with one command:
 
     .venv/bin/python examples/sensor_stats.py        # ≈ 20 s (includes a 60 s demo flight)
 

@@ -9,7 +9,7 @@ The public API, for notebooks (``import finkensim as fs``):
 ``fs.SwarmSim``           the compiled closed loop: world + sensors + behaviour over B environments
 ``fs.simulate_flight``    one flight of the configured scenario as a :class:`FlightLog`
 ``fs.run_episode``        one Monte-Carlo episode's metrics
-``fs.FlightLog``          the flight-log record (``spec/flightlog.md``); ``fs.load_log(path)`` reads one
+``fs.FlightLog``          the flight-log record (``docs/formats/flightlog.md``); ``fs.load_log(path)`` reads one
 ``fs.run_sweep``          a Monte-Carlo sweep over a design (TOML), stored as Parquet, resumable
 ``fs.diagnose``           the sim-to-real gap of real logs: a :class:`~finkensim.gap.GapReport`
 ``fs.metrics``            swarm metrics (cohesion, wall contact, coverage …)

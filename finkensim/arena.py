@@ -20,7 +20,7 @@ the plate surface at flight height, displaced into the arena by ``lever · sin �
 ``lever = hinge_height − altitude``. A plate cannot swing through a copter: θ is capped where
 that surface would touch the nearest body, lever · sin θ ≤ d.
 
-Modelling choices (see README "Wall model"): the report's 40 kg plate cannot hang at 30°
+Modelling choices (see docs/user-guide/walls.md): the report's 40 kg plate cannot hang at 30°
 against a 15 N·m motor (it needs ≈ 98 N·m), so the default plate is a 0.3 kg curtain strip
 and ``profile = "seed"`` keeps 40 kg. The report's friction "3" is applied as viscous
 damping: as a Coulomb torque of 3 N·m it would hold a light plate at any angle forever.

@@ -67,7 +67,8 @@ def file_kind(path: Path) -> str:
 
 
 def log_summary(log: FlightLog) -> str:
-    """``flight log, T = ... samples over ... s (dt ...), N = ... copters, sensors: ...; arena W x L m``."""
+    """One line about a flight log: ``flight log, T = <T> samples over <s> s (dt <s>), N = <N> copters,
+    sensors: <list>; arena W x L m``."""
     T, N = int(log.t.shape[0]), int(log.pose.shape[1])
     span = float(log.t[-1] - log.t[0])
     dt = f" (dt {span / (T - 1):.3g} s)" if T > 1 else ""

@@ -95,10 +95,12 @@ def check_determinism(sim_or_cfg, n_envs: int = 3, n_steps: int = 50, seed: int 
     Runs ``sim.rollout(sim.init(n_envs, seed), n_steps)`` — a :class:`~finkensim.swarm.SwarmSim` (world,
     every enabled sensor and the behaviour, recording everything it can) or a :class:`~finkensim.world.World`
     with a controller — and checks that
-      1. the same rollout run twice gives identical final states and records;
-      2. the initial state passed in is left unchanged (rollouts are pure);
-      3. environment k of the batch equals a lone run from ``init(env_ids=[k], seed=seed)``, for every k;
-      4. the batch with its environment indices reversed gives the same environments, reversed.
+
+    1. the same rollout run twice gives identical final states and records;
+    2. the initial state passed in is left unchanged (rollouts are pure);
+    3. environment k of the batch equals a lone run from ``init(env_ids=[k], seed=seed)``, for every k;
+    4. the batch with its environment indices reversed gives the same environments, reversed.
+
     Arrays are compared exactly (bit for bit, NaN equal to NaN). The message names the check, the array
     and the first differing index (records are compared before final states, so it is the earliest
     step that differs), e.g. ``lone env 2 vs batch: traj.sonar[7, 0, 3, 1]: 1.25 (lone) != 1.2500001 (batch)``.

@@ -1,4 +1,4 @@
-"""The ``finkensim`` command line.
+"""The ``finkensim`` command line::
 
     finkensim run [scenario.toml] [--out DIR] [--duration S] [--seed N] [--no-gif] [--no-ideal] [--no-progress]
     finkensim sweep sweep.toml [--out DIR] [--executor serial|process|dask] [--workers N]
@@ -254,13 +254,17 @@ def _add_gap(sub) -> None:
         "gap", help="diagnose the sim-to-real gap of real flight logs",
         description="Replay real flight logs in the simulator, find where simulated and real sensor data disagree, "
                     "which catalogued effect explains it and how far the gap shrinks on held-out flights. Writes "
-                    "DIR/report.json (spec/gap-report.md), DIR/report.md and figures.")
-    p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (spec/flightlog.md)")
+                    "DIR/report.json (docs/formats/gap-report.md), DIR/report.md and figures.")
+    p.add_argument("logs", nargs="+", metavar="REAL.npz", help="flight logs (docs/formats/flightlog.md)")
     p.add_argument("--config", default=None, metavar="sim.toml", help="simulator config (error models, walls, [gap])")
-    p.add_argument("--out", default="out/gap", metavar="DIR", help="output directory (default: %(default)s)")
+    p.add_argument("--out", default="out/gap", metavar="DIR",
+                   help="output directory: report.json, report.md, figures, calibrated.toml (default: %(default)s)")
     p.add_argument("--heldout", nargs="+", default=None, metavar="NAME",
                    help="held-out flights by file name (default: every other flight; one flight: its second half)")
     p.add_argument("--effects", nargs="+", default=None, metavar="EFFECT", help="only try these catalogued effects")
+    p.add_argument("--limits", choices=("config", "from-log"), default="config",
+                   help="range limits (sonar.max_range, ranging.max_range): from the config, where readings beyond "
+                        "them are an error, or raised to the logs' largest reading (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_gap)
 
@@ -294,7 +298,9 @@ def cmd_gap(args) -> int:
     say = None if args.no_progress else (lambda msg: print(f"{prog}: {msg}", file=sys.stderr, flush=True))
     t0 = time.perf_counter()
     try:
-        diag = Diagnosis(logs, names, cfg, heldout=args.heldout, progress=say)
+        diag = Diagnosis(logs, names, cfg, heldout=args.heldout, progress=say, limits=args.limits)
+        for note in diag.limit_notes.values():
+            print(f"{prog}: {note}", file=sys.stderr)
         report = run_diagnosis(diag, args.effects)
     except (GapInputError, ConfigError) as exc:
         raise UsageError(prog, str(exc)) from None
@@ -305,12 +311,17 @@ def cmd_gap(args) -> int:
     v = report["verdict"]
     if not v["significant_gap"]:
         verdict = "no significant gap"
+    elif v["unexplained"] and all(s in report.details.too_little_data for s in report.details.gap_sensors or ["-"]):
+        verdict = "significant gap; too little data to decide what explains it (see report.md)"
     elif v["unexplained"]:
         verdict = "significant gap, unexplained by the catalogue"
     else:
         verdict = f"{v['effect']} explains it (held-out shrink {100 * v['shrink_heldout']:.0f} %)"
     print(f"{prog}: gap {report['gap_before']:.4f}: {verdict}")
     print(f"{prog}: wrote {paths['json']} and {paths['md']} in {time.perf_counter() - t0:.1f} s")
+    if "calibrated" in paths:
+        print(f"{prog}: wrote {paths['calibrated']}: the diagnosed config with the selected effects at their fitted "
+              f"parameters (finkensim run/sweep/tune read it as it is)")
     return EXIT_OK
 
 

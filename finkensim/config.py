@@ -1,13 +1,11 @@
 """Configuration: frozen dataclasses with defaults for everything, loaded from TOML.
 
-Every field carries metadata (unit, allowed range or choices, one line of doc). The same
-validator runs when a dataclass is built in Python and when a TOML file is loaded, so a
-wrong key, type or range is always a :class:`ConfigError` naming the key, the value and
-what is allowed. Unknown keys are errors with a "did you mean" suggestion.
-
-Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted
-by the models). ``profile = "seed"`` switches every model to the behaviour described in the
-original V-REP report (see ``DESIGN.md``); keys given explicitly still override the profile.
+Every field carries metadata (unit, allowed range or choices, one line of doc). The same validator runs when a
+dataclass is built in Python and when a TOML file is loaded, so a wrong key, type or range is always a
+:class:`ConfigError` naming the key, the value and what is allowed. Unknown keys are errors with a "did you mean"
+suggestion. Units are SI (m, s, rad, kg) except fields whose name ends in ``_deg`` (degrees, converted by the
+models). ``profile = "seed"`` switches every model to the behaviour described in the original V-REP report (see
+``docs/user-guide/``); keys given explicitly still override the profile.
 """
 from __future__ import annotations
 
@@ -15,115 +13,17 @@ import dataclasses
 import functools
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from .configfields import ConfigError, Section as _Section, describe_range, field_spec as _f
 from .usertext import strip_bom, suggest
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
-
-
-class ConfigError(ValueError):
-    """A configuration value is wrong. The message names the key, the value and what is allowed."""
-
-
-def _f(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
-    """A dataclass field with validation metadata.
-
-    ``lo``/``hi`` bound numbers (inclusive unless ``*_open``); ``choices`` lists allowed strings;
-    ``length`` fixes the length of a tuple field (None = any length).
-    """
-    meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
-    if isinstance(default, (list, tuple)):
-        return field(default_factory=lambda d=tuple(default): d, metadata=meta)
-    return field(default=default, metadata=meta)
-
-
-def _describe_range(meta) -> str:
-    parts = []
-    if meta["choices"] is not None:
-        return "one of " + ", ".join(repr(c) for c in meta["choices"])
-    if meta["lo"] is not None:
-        parts.append((">" if meta["lo_open"] else ">=") + f" {meta['lo']}")
-    if meta["hi"] is not None:
-        parts.append(("<" if meta["hi_open"] else "<=") + f" {meta['hi']}")
-    unit = f" {meta['unit']}" if meta["unit"] else ""
-    return " and ".join(parts) + unit if parts else "any value"
-
-
-def _check_number(key, value, meta, kind):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        article = "an" if kind[0] in "aeiou" else "a"
-        raise ConfigError(f"{key} = {value!r}: expected {article} {kind}, got {type(value).__name__}")
-    if kind == "integer" and not isinstance(value, int):
-        raise ConfigError(f"{key} = {value!r}: expected an integer, got {type(value).__name__}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{key} = {value!r}: expected a finite {kind}")
-    lo, hi = meta["lo"], meta["hi"]
-    bad_lo = lo is not None and (value <= lo if meta["lo_open"] else value < lo)
-    bad_hi = hi is not None and (value >= hi if meta["hi_open"] else value > hi)
-    if bad_lo or bad_hi:
-        raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}")
-    return float(value) if kind == "number" else int(value)
-
-
-def _coerce(key: str, value: Any, ftype: Any, meta: Mapping) -> Any:
-    """Check one value against its declared type and metadata; return it in canonical form."""
-    t = ftype if isinstance(ftype, str) else getattr(ftype, "__name__", str(ftype))
-    if t == "float":
-        return _check_number(key, value, meta, "number")
-    if t == "int":
-        return _check_number(key, value, meta, "integer")
-    if t == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(f"{key} = {value!r}: expected true or false, got {type(value).__name__}")
-        return value
-    if t == "str":
-        if not isinstance(value, str):
-            raise ConfigError(f"{key} = {value!r}: expected a string, got {type(value).__name__}")
-        if meta["choices"] is not None and value not in meta["choices"]:
-            raise ConfigError(f"{key} = {value!r}: expected {_describe_range(meta)}{suggest(value, meta['choices'])}")
-        return value
-    if t == "tuple[str, ...]":
-        if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
-            raise ConfigError(f"{key} = {value!r}: expected a list of strings")
-        return tuple(value)
-    if t.startswith("tuple"):
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{key} = {value!r}: expected a list of numbers")
-        inner = "tuple[float, float]" in t or "tuple[tuple" in t
-        if not inner:  # a bad element is named before a wrong length
-            checked = tuple(_check_number(f"{key}[{i}]", v, meta, "number") for i, v in enumerate(value))
-        if meta["length"] is not None and len(value) != meta["length"]:
-            raise ConfigError(f"{key} = {value!r}: expected a list of {meta['length']} numbers, got {len(value)}")
-        if inner:  # a list of 2-D points
-            pts = []
-            for i, p in enumerate(value):
-                if not isinstance(p, (list, tuple)) or len(p) != 2:
-                    raise ConfigError(f"{key}[{i}] = {p!r}: expected a point [x, y] in m")
-                pts.append(tuple(_check_number(f"{key}[{i}]", c, meta, "number") for c in p))
-            return tuple(pts)
-        return checked
-    raise TypeError(f"unsupported config field type {t} for {key}")  # a bug in this module, not user input
-
-
-class _Section:
-    """Mixin: validate every field on construction (also when built from Python)."""
-
-    _section = ""
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            key = f"{self._section}.{f.name}" if self._section else f.name
-            object.__setattr__(self, f.name, _coerce(key, getattr(self, f.name), f.type, f.metadata))
-        self._check()
-
-    def _check(self):
-        """Cross-field checks; override in sections that need them."""
 
 
 @dataclass(frozen=True)
@@ -182,6 +82,7 @@ class CopterConfig(_Section):
 
 @dataclass(frozen=True)
 class SimulationConfig(_Section):
+    """Time stepping, run length, seed and batch size: world step ``dt`` s, ``duration`` s, ``seed``, ``n_envs`` (B)."""
     _section = "simulation"
     dt: float = _f(0.05, "s", 0.0, 1.0, lo_open=True, doc="world step")
     duration: float = _f(60.0, "s", 0.0, 1e6, lo_open=True, doc="length of a `finkensim run` flight")
@@ -233,7 +134,9 @@ class SonarConfig(_Section):
                     doc="error model: Rayleigh term, the report's rule, Gaussian(sigma), or ideal")
     sigma: float = _f(0.05, "m", 0.0, 10.0, doc="Rayleigh scale (rayleigh, seed) or standard deviation (gaussian)")
     rayleigh_sign: float = _f(-1.0, "", -1.0, 1.0, doc="+1: reading = true + (R - s); -1: true - (R - s) (readings run short)")
-    crosstalk: str = _f("geometric", choices=("geometric", "constant", "off"))
+    crosstalk: str = _f("geometric", choices=("geometric", "constant", "geometric+constant", "off"),
+                        doc="cross-talk model: another copter's ping heard by geometry, a constant fraction of "
+                            "halved readings (the report's rule), both, or none")
     crosstalk_probability: float = _f(0.68, "", 0.0, 1.0, doc="constant cross-talk: probability per reading (report: 0.68)")
     cone_half_angle_deg: float = _f(45.0, "deg", 0.0, 90.0, lo_open=True, doc="sonar cone (original scene: 45 deg)")
     schedule: str = _f("round_robin", choices=("simultaneous", "round_robin", "random_offset"),
@@ -242,7 +145,14 @@ class SonarConfig(_Section):
     crosstalk_jitter: float = _f(0.02, "m", 0.0, 10.0, doc="std of the jitter added to a cross-talk reading")
     beam: str = _f("ray", choices=("ray", "cone"), doc="ray: one ray; cone: nearest echo of several rays inside the cone")
     beam_rays: int = _f(7, "", 1, 1001, doc="rays across the cone when beam = 'cone'")
+    beam_half_angle_deg: float = _f(-1.0, "deg", -1.0, 90.0, doc="half-width of the rays of beam = 'cone'; -1 = "
+                                    "cone_half_angle_deg (the beam_width effect fits it apart from the cross-talk cone)")
     down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
+    range_scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every echo distance (speed of sound relative to the "
+                            "assumed one; the gap effect sound_speed fits it)")
+    bias: float = _f(0.0, "m", -1.0, 1.0, doc="constant offset added to every echo (the gap effect sonar_bias fits it)")
+    crosstalk_hear_probability: float = _f(1.0, "", 0.0, 1.0, doc="geometric cross-talk: probability that a "
+                                           "receiver in cross-talk position hears the emitter (crosstalk_geometric)")
 
 
 @dataclass(frozen=True)
@@ -270,6 +180,9 @@ class ImuConfig(_Section):
     acc_bias_walk: float = _f(0.0005, "m/s^3/sqrt(Hz)", 0.0, 100.0, doc="accelerometer bias random walk density")
     gyro_noise_density: float = _f(0.00009, "rad/s/sqrt(Hz)", 0.0, 100.0, doc="MPU-6000 class: 0.005 deg/s/sqrt(Hz)")
     gyro_bias_walk: float = _f(0.00002, "rad/s^2/sqrt(Hz)", 0.0, 100.0, doc="gyro bias random walk density")
+    acc_bias: tuple[float, ...] = _f((0.0, 0.0), "m/s^2", -20.0, 20.0, length=2,
+                                     doc="constant body-frame accelerometer bias (x, y) (the gap effect imu_bias fits it)")
+    gyro_bias: float = _f(0.0, "rad/s", -10.0, 10.0, doc="constant gyro bias (the gap effect imu_bias fits it)")
 
 
 @dataclass(frozen=True)
@@ -296,6 +209,18 @@ class GapConfig(_Section):
     effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
 
 
+@dataclass(frozen=True)
+class LogConfig(_Section):
+    """What the flight-log writer records beyond the simulated world (``simulate_flight``, ``finkensim run``)."""
+
+    _section = "log"
+    tracking_sigma_xy: float = _f(0.0, "m", 0.0, 0.1, doc="tracking noise added to the logged x, y (a camera "
+                                  "tracker's; 0 = ground truth; kept inside the arena); written to "
+                                  "meta.tracking_sigma_xy")
+    tracking_sigma_yaw: float = _f(0.0, "rad", 0.0, 3.2, doc="tracking noise added to the logged yaw; written to "
+                                   "meta.tracking_sigma_yaw")
+
+
 SECTIONS: dict[str, type] = {
     "arena": ArenaConfig,
     "walls": WallConfig,
@@ -306,6 +231,7 @@ SECTIONS: dict[str, type] = {
     "ranging": RangingConfig,
     "imu": ImuConfig,
     "gap": GapConfig,
+    "log": LogConfig,
 }
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
@@ -327,11 +253,14 @@ def register_section(name: str, cls: type, seed_overrides: Mapping[str, Any] | N
 
 
 class Config:
-    """The whole configuration: one frozen section object per name in :data:`SECTIONS`.
+    """The whole configuration: one frozen section object per name in ``SECTIONS`` (section name → class).
 
-    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`,
-    :func:`config_from_dict`, or ``Config()`` for all defaults; derive variants with
-    :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+    Sections are attributes (``cfg.walls.n_segments``). Build with :func:`load_config`, :func:`config_from_dict`,
+    or ``Config()`` for all defaults; derive variants with :meth:`replace` (``cfg.replace({"walls.bending": False})``).
+
+    Parameters
+    ----------
+    profile, **sections : ``"default"`` or ``"seed"`` (the V-REP report's models); sections by TOML table name
     """
 
     __slots__ = ("profile", "_sections")
@@ -383,8 +312,13 @@ class Config:
     def replace(self, updates: Mapping[str, Any]) -> "Config":
         """A new Config with dotted keys replaced, e.g. ``{"walls.bending": False, "copters.n": 10}``.
 
-        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults
-        take the new profile's; values set away from them are kept.
+        ``{"profile": "seed"}`` switches profile: values that were at the old profile's defaults take the new
+        profile's; values set away from them are kept.
+
+        Parameters
+        ----------
+        updates : Mapping[str, Any]
+            Dotted keys ``"section.key"`` (or ``"profile"``) → new values, in the config's units.
         """
         profile = updates.get("profile", self.profile)
         base = Config(profile).to_dict() if profile != self.profile else None
@@ -421,11 +355,8 @@ def _check_room(copters, arena) -> None:
 
 
 def check_key(section: str, key: str | None = None) -> None:
-    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting.
-
-    Raises:
-        ConfigError: for an unknown section or key, with a close-match suggestion and the allowed names.
-    """
+    """Check that ``[section]`` (and, when given, ``section.key``) names a config setting; a :class:`ConfigError`
+    for an unknown section or key, with a close-match suggestion and the allowed names."""
     if section not in SECTIONS:
         extra = suggest(section, [*SECTIONS, "profile"])
         raise ConfigError(f"unknown section [{section}]: expected one of {', '.join(SECTIONS)}{extra}")
@@ -459,7 +390,12 @@ def config_from_dict(data: Mapping[str, Any], _explicit: bool = False) -> Config
 
 
 def load_config(source: str | Path | Mapping[str, Any] | None = None) -> Config:
-    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults)."""
+    """Load a config from a TOML file path, a TOML string, a dict, or None (all defaults).
+
+    Parameters
+    ----------
+    source : str, Path, Mapping or None (errors: :class:`ConfigError` naming the key, the value and the range)
+    """
     if source is None:
         return Config()
     if isinstance(source, Mapping):
@@ -490,5 +426,5 @@ def describe(cfg_cls: type) -> list[tuple[str, Any, str, str, str]]:
     rows = []
     for f in dataclasses.fields(cfg_cls):
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        rows.append((f.name, default, f.metadata["unit"], _describe_range(f.metadata), f.metadata["doc"]))
+        rows.append((f.name, default, f.metadata["unit"], describe_range(f.metadata), f.metadata["doc"]))
     return rows

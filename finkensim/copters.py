@@ -126,6 +126,7 @@ def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
 # A wall contact begins when the body touches a wall and ends only once it is this far away again,
 # so a copter sliding along a wall with a wobbling command counts one contact, not one per wobble.
 WALL_RELEASE_GAP = 0.02  # m
+"""Distance (m) from a wall at which a wall contact ends (see the comment above)."""
 
 
 @njit(cache=True, inline="always")

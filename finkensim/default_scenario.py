@@ -56,8 +56,24 @@ def default_scenario_path() -> Path:
 
 
 def load_scenario(source: str | Path | Mapping[str, Any] | Config | None = None) -> Config:
-    """A scenario :class:`~finkensim.config.Config` from a TOML path, TOML text, a dict, a Config,
-    or None for the embedded default scenario. Errors are :class:`~finkensim.config.ConfigError`."""
+    """A scenario :class:`~finkensim.config.Config`, by default the embedded default scenario.
+
+    Parameters
+    ----------
+    source : str, Path, Mapping, Config or None
+        A TOML path, TOML text, a dict, a Config (returned as it is), or None for the embedded default scenario
+        (:data:`DEFAULT_SCENARIO_TOML`).
+
+    Returns
+    -------
+    Config
+        The validated scenario.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`~finkensim.config.load_config`.
+    """
     if source is None:
         return load_config(DEFAULT_SCENARIO_TOML)
     if isinstance(source, Config):

@@ -44,13 +44,25 @@ def run_episode(cfg: Config | str | Mapping[str, Any] | None, seed: int, env_id:
                 metrics: Iterable[str] | None = None) -> dict[str, float]:
     """Fly one episode of ``cfg`` and return its metrics (name → float, units in :data:`~finkensim.metrics.METRICS`).
 
-    Args:
-        cfg: a Config, TOML path or text, dict, or None (the default scenario). Its
-            ``simulation.duration`` sets the length; ``simulation.seed`` is ignored in favour of ``seed``.
-        seed: random seed of the episode (placement and behaviour noise).
-        env_id: environment index keying the randomness (with ``seed``), as in :meth:`World.init`.
-        metrics: subset of metric names (default: all).
+    Parameters
+    ----------
+    cfg : Config, str, Mapping or None
+        A Config, TOML path or text, dict, or None (the default scenario). Its ``simulation.duration`` (s)
+        sets the length; ``simulation.seed`` is ignored in favour of ``seed``.
+    seed : int
+        Random seed of the episode (placement and behaviour noise).
+    env_id : int
+        Environment index keying the randomness (with ``seed``), as in :meth:`World.init`.
+    metrics : iterable of str, optional
+        Subset of metric names (default: all of :data:`~finkensim.metrics.METRICS`).
 
+    Returns
+    -------
+    dict of str to float
+        Metric name → value, in the unit :data:`~finkensim.metrics.METRICS` gives.
+
+    Notes
+    -----
     The trajectory has T = round(duration / dt) samples (t = 0 … duration − dt); the contact counts
     also include the state after the last step.
     """

@@ -1,4 +1,4 @@
-"""Swarm-behaviour metrics of an episode, from its recorded poses; batched over environments.
+"""Swarm-behaviour metrics of an episode, from its recorded poses; batched over environments::
 
     from finkensim.metrics import episode_metrics, METRICS
     final, rec = sim.rollout(state0, n_steps, record=("pose",))      # sim = finkensim.swarm.SwarmSim(cfg)
@@ -85,6 +85,7 @@ METRICS: dict[str, MetricInfo] = {
     "fragmentation": MetricInfo("components", f"mean number of groups (links < {LINK_RANGE} m)"),
     "coverage": MetricInfo("fraction", f"fraction of {COVERAGE_CELL} m grid cells visited"),
 }
+"""Every episode metric by name, with its unit and what it measures (:class:`MetricInfo`)."""
 
 
 def check_metric_names(names: Iterable[str] | None) -> tuple[str, ...]:

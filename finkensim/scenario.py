@@ -122,13 +122,6 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
                     progress: bool = False) -> tuple[FlightLog, Trajectory, World]:
     """Simulate one flight of the configured behaviour and build its flight log.
 
-    Args:
-        cfg: a Config, a TOML path or text, a dict, or None for the embedded default scenario.
-        duration: flight length in s (default ``simulation.duration``).
-        seed: random seed (default ``simulation.seed``).
-        ideal: also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
-        progress: a progress bar on stderr (the flight runs in about 100 parts; the same results).
-
     One environment (B = 1, environment index 0) is placed at random and flown for
     round(duration / dt) steps by ``behaviour.kind`` in the compiled loop of
     :class:`~finkensim.swarm.SwarmSim`, whose sensor readings (for ``attraction_repulsion``, those the
@@ -139,14 +132,37 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     ``meta["config"]`` always describes the run exactly: ``config_from_dict(log.meta["config"])``
     rebuilds it.
 
-    Returns:
-        (log, traj, world): the validated :class:`FlightLog`; the :class:`Trajectory` of the
-        flight (arrays with a leading time axis and B = 1, e.g. ``traj.theta`` (T, 1, S) plate
-        angles in rad); the :class:`World` (physics) that ran it.
+    Parameters
+    ----------
+    cfg : Config, str, Path, Mapping or None
+        A Config, a TOML path or text, a dict, or None for the embedded default scenario.
+    duration : float, optional
+        Flight length, s (default ``simulation.duration``).
+    seed : int, optional
+        Random seed (default ``simulation.seed``).
+    ideal : bool
+        Also store the error-free sensor values (extras ``*_ideal``, ``ultrasonic_hit_type``).
+    progress : bool
+        A progress bar on stderr (the flight runs in about 100 parts; the same results).
 
-    Besides poses, the log carries ``meta`` = {copter_radius, altitude, source, tracking_sigma_xy
-    = tracking_sigma_yaw = 0 (ground truth), dt, duration, seed, behaviour, config} and the plate
-    angles as the extra array ``wall_theta`` (T, S) rad (plates ordered south, east, north, west).
+    Returns
+    -------
+    log : FlightLog
+        The validated flight log (T samples, N copters).
+    traj : Trajectory
+        The flight's trajectory (arrays with a leading time axis and B = 1, e.g. ``traj.theta`` (T, 1, S)
+        plate angles in rad).
+    world : World
+        The physics that ran it.
+
+    Notes
+    -----
+    Besides poses, the log carries ``meta`` = {copter_radius, altitude, source, tracking_sigma_xy,
+    tracking_sigma_yaw, dt, duration, seed, behaviour, config} and the plate
+    angles as the extra array ``wall_theta`` (T, S) rad (plates ordered south, east, north, west). The poses are the
+    true ones unless ``log.tracking_sigma_xy`` / ``log.tracking_sigma_yaw`` (m, rad) are set: then they are what a
+    tracker with that noise records (:func:`~finkensim.sensors.tracking.tracked_poses`; meta says the σ), and with
+    ``ideal`` the true poses are the extra ``pose_true`` (T, N, 3).
     """
     cfg = load_scenario(cfg)
     updates: dict[str, Any] = {}
@@ -185,8 +201,8 @@ def flight_log(cfg: Config, swarm: SwarmSim, state0, rec: SwarmRecord, ideal: bo
         "copter_radius": cfg.copters.radius,
         "altitude": cfg.arena.altitude,
         "source": f"finkensim {__version__}",
-        "tracking_sigma_xy": 0.0,
-        "tracking_sigma_yaw": 0.0,
+        "tracking_sigma_xy": cfg.log.tracking_sigma_xy,
+        "tracking_sigma_yaw": cfg.log.tracking_sigma_yaw,
         "dt": sim.dt,
         "duration": sim.duration,
         "seed": sim.seed,
@@ -199,10 +215,17 @@ def flight_log(cfg: Config, swarm: SwarmSim, state0, rec: SwarmRecord, ideal: bo
     meta.update(blocks.pop("meta", {}) or {})
     extras.update(blocks.pop("extras", {}) or {})
 
+    pose = np.ascontiguousarray(traj.pose[:, 0])
+    if cfg.log.tracking_sigma_xy > 0.0 or cfg.log.tracking_sigma_yaw > 0.0:
+        if ideal:
+            extras["pose_true"] = pose
+        pose = _tracked(pose, cfg.log, sim.seed, int(state0.world.env_ids[0]))
+        np.clip(pose[..., 0], 0.0, cfg.arena.width, out=pose[..., 0])
+        np.clip(pose[..., 1], 0.0, cfg.arena.length, out=pose[..., 1])
     log = FlightLog(
         t=np.asarray(traj.t, dtype=float),
         arena=np.array([cfg.arena.width, cfg.arena.length]),
-        pose=np.ascontiguousarray(traj.pose[:, 0]),
+        pose=pose,
         copter_ids=np.array([f"copter{i}" for i in range(n)]),
         meta=meta,
         extras=extras,
@@ -210,3 +233,16 @@ def flight_log(cfg: Config, swarm: SwarmSim, state0, rec: SwarmRecord, ideal: bo
     )
     validate(log)
     return log, traj
+
+
+def _tracked(pose, log_cfg, seed: int, env_id: int):
+    """The poses (T, N, 3) a tracker with the configured noise records (:mod:`finkensim.sensors.tracking`), x and y
+    kept inside the arena (the flight-log format's frame), yaw wrapped to [−π, π]."""
+    from .sensors.tracking import tracked_poses
+
+    pos = np.ascontiguousarray(pose[..., :2])
+    yaw = np.ascontiguousarray(pose[..., 2])
+    out_pos, out_yaw = np.empty_like(pos), np.empty_like(yaw)
+    tracked_poses(pos, yaw, float(log_cfg.tracking_sigma_xy), float(log_cfg.tracking_sigma_yaw), int(seed), env_id,
+                  out_pos, out_yaw)
+    return np.concatenate([out_pos, np.arctan2(np.sin(out_yaw), np.cos(out_yaw))[..., None]], axis=-1)

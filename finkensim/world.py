@@ -33,7 +33,7 @@ from .arena import Arena, HingeParams, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.cellgrid import engine_grid, env_grid, grid_params
-from .kernels.geometry import nearest_body_distance_within_env
+from .kernels.geometry import nearest_body_distance_env, nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
 from .kernels.threads import run_ranges
 
@@ -60,18 +60,48 @@ class WorldArrays(NamedTuple):
     collisions: np.ndarray
 
 
+@njit(cache=True)
+def walls_from_positions(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
+    """Plate angles theta_out (T, S) rad of walls driven by given (e.g. logged) copter positions pos (T, N, 2) m at
+    times t (T,) s, as in a simulation (sample k holds the plates after responding to the positions of samples
+    1 … k), and each plate's distance to the nearest copter body dist_out (T, S) m. The gap diagnosis replays logged
+    flights with it; the importer's clock estimate too."""
+    T = pos.shape[0]
+    S = seg_a.shape[0]
+    theta = np.zeros(S)
+    omega = np.zeros(S)
+    integ = np.zeros(S)
+    dist = np.empty(S)
+    for k in range(T):
+        nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
+        if k > 0:
+            walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
+        for s in range(S):
+            theta_out[k, s] = theta[s]
+            dist_out[k, s] = dist[s]
+
+
+
 @dataclass(frozen=True)
 class WorldState:
     """Everything that changes during a run. Arrays are owned by this state (never aliased).
 
     Attributes:
-        pos (B, N, 2) m; vel (B, N, 2) m/s (world frame); acc (B, N, 2) m/s², the world-frame
-        acceleration applied in the last step; yaw (B, N) rad in [−π, π); yaw_rate (B, N) rad/s.
-        theta (B, S) rad plate hinge angles (positive into the arena); omega (B, S) rad/s;
-        integ (B, S) rad·s, PID integral.
-        in_wall, in_collision (B, N) bool: contact now; wall_contacts, collisions (B, N) int64:
-        contact onsets counted since init.
-        step: steps taken since init (int); seed (int); env_ids (B,) int64 global environment indices.
+        pos: (B, N, 2) copter positions, m.
+        vel: (B, N, 2) velocities in the world frame, m/s.
+        acc: (B, N, 2) the world-frame acceleration applied in the last step, m/s².
+        yaw: (B, N) headings in [−π, π), rad.
+        yaw_rate: (B, N) yaw rates, rad/s.
+        theta: (B, S) plate hinge angles (positive into the arena), rad.
+        omega: (B, S) plate angular velocities, rad/s.
+        integ: (B, S) the hinge PID's integral, rad·s.
+        in_wall: (B, N) bool, in contact with a wall now.
+        in_collision: (B, N) bool, in contact with another copter now.
+        wall_contacts: (B, N) int64, wall-contact onsets counted since init.
+        collisions: (B, N) int64, collision onsets counted since init.
+        step: steps taken since init (int).
+        seed: the random seed (int).
+        env_ids: (B,) int64 global environment indices.
     """
 
     pos: np.ndarray
@@ -208,12 +238,25 @@ class World:
     """Static part of a simulation (config, arena geometry, kernel parameters) and its pure functions.
     Physics only: commands in, new state out; no behaviour, no sensor.
 
-    Args:
-        cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
+    Parameters
+    ----------
+    cfg : Config, str, dict or None
+        A :class:`~finkensim.config.Config`, a TOML path or text, a dict, or None for the defaults.
 
-    Attributes: ``cfg``; ``arena`` (:class:`~finkensim.arena.Arena`); the kernel records ``copter_params``
-    (:class:`~finkensim.copters.CopterParams`), ``hinge_params`` (:class:`~finkensim.arena.HingeParams`) and
-    ``geometry`` (:class:`~finkensim.arena.WallGeometry`); ``dt`` s.
+    Attributes
+    ----------
+    cfg : Config
+        The validated configuration.
+    arena : Arena
+        The arena and its walls (:class:`~finkensim.arena.Arena`).
+    copter_params : CopterParams
+        The copters' kernel record (:class:`~finkensim.copters.CopterParams`).
+    hinge_params : HingeParams
+        The plates' hinge record (:class:`~finkensim.arena.HingeParams`).
+    geometry : WallGeometry
+        The plates' rest geometry (:class:`~finkensim.arena.WallGeometry`).
+    dt : float
+        World step, s.
     """
 
     def __init__(self, cfg: Config | str | dict | None = None):
@@ -230,14 +273,37 @@ class World:
 
     @property
     def n_copters(self) -> int:
+        """Copters per environment, N (``copters.n``)."""
         return self.cfg.copters.n
 
     def init(self, n_envs: int | None = None, seed: int | None = None, env_ids=None, positions=None,
              yaw=None) -> WorldState:
-        """Initial state: copters at rest, placed at random (or at ``positions`` (B, N, 2) m), plates hanging.
+        """Initial state: copters at rest, placed at random (or at ``positions``), plates hanging.
 
-        ``env_ids`` (B,) are the global environment indices that key the randomness; by default
-        ``arange(n_envs)``. ``seed`` defaults to ``simulation.seed``.
+        Parameters
+        ----------
+        n_envs : int, optional
+            Number of environments B (default ``simulation.n_envs``; ignored when ``env_ids`` is given).
+        seed : int, optional
+            Random seed (default ``simulation.seed``).
+        env_ids : array_like of int, shape (B,), optional
+            Global environment indices that key the randomness (default ``arange(n_envs)``): environment k of
+            a batch equals a lone run with ``env_ids=[k]``.
+        positions : array_like, shape (B, N, 2), optional
+            Copter centres, m, each inside the arena by at least a copter radius (default: random, at least
+            ``copters.min_separation`` apart).
+        yaw : array_like, shape (B, N), optional
+            Headings, rad (default: random).
+
+        Returns
+        -------
+        WorldState
+            The state at step 0.
+
+        Raises
+        ------
+        ConfigError
+            A bad shape, a position outside the arena, or a copter that does not fit in the arena.
         """
         c = self.cfg
         seed = c.simulation.seed if seed is None else int(seed)
@@ -293,8 +359,27 @@ class World:
         )
 
     def check_commands(self, state: WorldState, cmd_vel, cmd_yaw_rate) -> tuple[np.ndarray, np.ndarray]:
-        """Validated C-contiguous float64 copies of the commands: cmd_vel broadcast to (B, N, 2) m/s and
-        cmd_yaw_rate to (B, N) rad/s (None → 0). Raises :class:`ConfigError` naming the bad argument."""
+        """Validated C-contiguous float64 copies of the commands.
+
+        Parameters
+        ----------
+        state : WorldState
+            The state the commands are for (gives B and N).
+        cmd_vel : array_like, broadcastable to (B, N, 2)
+            Velocity commands in the world frame, m/s.
+        cmd_yaw_rate : array_like, broadcastable to (B, N), or None
+            Yaw-rate commands, rad/s (None → 0).
+
+        Returns
+        -------
+        cmd_vel : ndarray, shape (B, N, 2)
+        cmd_yaw_rate : ndarray, shape (B, N)
+
+        Raises
+        ------
+        ConfigError
+            A shape that does not broadcast, or a non-finite command; the message names the argument.
+        """
         B, N = state.n_envs, state.n_copters
 
         def as_array(name, value, shape, unit):
@@ -318,26 +403,65 @@ class World:
     def step(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> WorldState:
         """One step of every environment: a new state; the input state is left untouched.
 
-        cmd_vel (B, N, 2) m/s world frame (broadcastable); cmd_yaw_rate (B, N) rad/s (default 0).
+        Parameters
+        ----------
+        state : WorldState
+            The current state (B environments of N copters).
+        cmd_vel : array_like, broadcastable to (B, N, 2)
+            Velocity commands in the world frame, m/s.
+        cmd_yaw_rate : array_like, broadcastable to (B, N), optional
+            Yaw-rate commands, rad/s (default 0).
+
+        Returns
+        -------
+        WorldState
+            The state one step (``dt``) later, with ``step`` advanced by one.
         """
         new = state.copy()
         self.step_inplace(new, cmd_vel, cmd_yaw_rate)
         return replace(new, step=state.step + 1)
 
     def step_inplace(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> None:
-        """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced)."""
+        """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced).
+
+        Parameters
+        ----------
+        state : WorldState
+            The state to advance in place.
+        cmd_vel : array_like, broadcastable to (B, N, 2)
+            Velocity commands in the world frame, m/s.
+        cmd_yaw_rate : array_like, broadcastable to (B, N), optional
+            Yaw-rate commands, rad/s (default 0).
+        """
         cmd_vel, cmd_yaw_rate = self.check_commands(state, cmd_vel, cmd_yaw_rate)
         _step_batch(state.arrays(), cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params, self.geometry,
                     self.dt, engine_grid(self.grid, state.n_envs, state.n_copters))
 
     def rollout(self, state: WorldState, n_steps: int, controller: Callable,
                 record: bool = True) -> tuple[WorldState, Trajectory | None]:
-        """Run ``n_steps`` steps; returns (final state, trajectory recorded before each step, or None).
+        """Run ``n_steps`` steps under a Python controller; ``state`` is left unchanged.
 
-        ``controller(world, state) -> (cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) rad/s or None)`` is
-        called once per step with the current state (e.g. :class:`~finkensim.behaviours.open_loop.RandomWalk`).
-        ``state`` is left unchanged. For behaviours compiled with the sensors into one kernel, use
-        :class:`finkensim.swarm.SwarmSim`.
+        For behaviours compiled with the sensors into one kernel, use :class:`finkensim.swarm.SwarmSim`.
+
+        Parameters
+        ----------
+        state : WorldState
+            The initial state.
+        n_steps : int
+            Number of steps T (≥ 0).
+        controller : callable
+            ``controller(world, state) -> (cmd_vel, cmd_yaw_rate)`` with cmd_vel (B, N, 2) m/s and cmd_yaw_rate
+            (B, N) rad/s or None, called once per step with the current state (e.g.
+            :class:`~finkensim.behaviours.open_loop.RandomWalk`).
+        record : bool
+            Record the trajectory (default True).
+
+        Returns
+        -------
+        final : WorldState
+            The state after ``n_steps`` steps.
+        trajectory : Trajectory or None
+            The states recorded *before* each step (T samples), or None when ``record`` is False.
         """
         if not isinstance(n_steps, (int, np.integer)) or isinstance(n_steps, bool) or n_steps < 0:
             raise ConfigError(f"n_steps = {n_steps!r}: expected a non-negative integer")

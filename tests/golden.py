@@ -5,7 +5,7 @@ Refactors must keep these bit-identical. ``tests/test_golden.py`` recomputes the
 
     python -m tests.golden --update
 
-and says so in the commit message (and the README where a documented number moves).
+and says so in the commit message (and the docs page where a documented number moves).
 
 Each scenario is small (seconds of flight) but reaches every model: open loop (random walk, hover),
 the closed loop with every behaviour option and sensor model, the seed profile, a sweep table and the

@@ -1,7 +1,7 @@
 """Arena geometry and the Bernoulli hinge walls: amplitude law, plates, hinge dynamics.
 
 The settling time of a plate pulled by a copter 0.3 m away is measured and printed
-(run ``pytest -s tests/test_arena.py -k settling`` to see it); README "The wall model" quotes it.
+(run ``pytest -s tests/test_arena.py -k settling`` to see it); docs/user-guide/walls.md quotes it.
 """
 from __future__ import annotations
 
@@ -119,7 +119,7 @@ def test_plate_surfaces_displaced_by_lever_sin_theta(thetas, hinge_height):
 
 
 def test_default_displacement_magnitude():
-    """README: lever 0.4 m moves the surface up to 0.21 m at the 31.9 deg target."""
+    """docs/user-guide/walls.md: lever 0.4 m moves the surface up to 0.21 m at the 31.9 deg target."""
     a = Arena.from_config(Config().arena, Config().walls)
     assert a.lever == pytest.approx(0.4)
     assert a.displacement(np.deg2rad(31.857)) == pytest.approx(0.211, abs=1e-3)
@@ -169,7 +169,7 @@ def test_plate_settling_time_with_copter_at_0_3_m():
     ts = settling_time(t, theta, target)
     print(f"\nplate settling time (2 %, copter body 0.3 m away, default walls): {ts:.2f} s; "
           f"peak {math.degrees(theta.max()):.2f} deg for target {math.degrees(target):.2f} deg")
-    assert ts == pytest.approx(SETTLING_S, abs=0.5 * world.dt)  # README: "settles ... after 2.0 s"
+    assert ts == pytest.approx(SETTLING_S, abs=0.5 * world.dt)  # docs/user-guide/walls.md: "settles ... after 2.0 s"
     assert abs(theta[-1] - target) < 0.02 * target
     # the world step gives exactly what the hinge kernel alone gives for d = 0.3 m
     _, alone = _run_plate(cfg, 0.3 + 0.0, 10.0)
@@ -186,7 +186,7 @@ def test_plate_swings_back_without_copter(friction):
     assert np.all(np.diff(mag[peaks]) <= 1e-12)
     if friction == 3.0:  # overdamped: |theta| itself never grows
         assert np.all(np.diff(mag) <= 1e-15)
-        assert mag[int(round(10.0 / cfg.simulation.dt))] < math.radians(0.3)  # README: below 0.3 deg within 10 s
+        assert mag[int(round(10.0 / cfg.simulation.dt))] < math.radians(0.3)  # walls.md: below 0.3 deg in 10 s
     assert mag[-1] < math.radians(0.05)
     assert np.all(mag <= 0.5 + 1e-12)
 

@@ -1,4 +1,4 @@
-"""Flight-log format version 1 (spec: /work/shared/spec/flightlog.md): round trips, every loader error, CSV import."""
+"""Flight-log format version 1 (spec: docs/formats/flightlog.md): round trips, every loader error, CSV import."""
 from __future__ import annotations
 
 import json

@@ -318,9 +318,14 @@ def test_ranging_draws_and_clearance_match_references():
     _, _, pos, yaw, _ = _scene(7, n=6)
     times = np.arange(pos.shape[0], dtype=np.int64)
     out = np.empty((times.size, 6, 6, 1))
-    rp.ranging_draws(pos, yaw, times, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
+    rp.ranging_draws(pos, np.zeros(pos.shape[:2]), yaw, times, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
     ref = np.sqrt(((pos[:, :, None] - pos[:, None]) ** 2).sum(-1))
     np.testing.assert_allclose(out[..., 0], ref, rtol=1e-12, atol=1e-15)
+    z = np.random.default_rng(3).uniform(0.2, 2.0, pos.shape[:2])  # heights: 3-D distances
+    rp.ranging_draws(pos, z, yaw, times, rp.PoseNoise(0.0, 0.0, 0, 0), 1, out)
+    p3 = np.concatenate([pos, z[..., None]], axis=-1)
+    np.testing.assert_allclose(out[..., 0], np.sqrt(((p3[:, :, None] - p3[:, None]) ** 2).sum(-1)), rtol=1e-12,
+                               atol=1e-15)
     clear = np.empty((times.size, 6, 6))
     rp.ranging_clearance(pos, times, clear)
     for k in times:

@@ -3,7 +3,7 @@
 For every catalogued effect: flights simulated with the effect at a random strength are
 diagnosed with a model that lacks it; the effect must be named first and remove at least 60 %
 of the held-out gap. Effects outside the catalogue must come out ``unexplained``. The full
-matrix with more trials is ``finkensim gap-validate`` (README, "Sim-to-real gap").
+matrix with more trials is ``finkensim gap-validate`` (docs/validation.md).
 """
 from __future__ import annotations
 

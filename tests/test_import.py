@@ -132,7 +132,7 @@ def test_positions_and_ranges_in_cm_or_mm(scale, unit):
     with pytest.raises(RecordingError, match=f"tracking x reaches .* looks like {unit}"):
         build_flight(rec(tracking=tr), (3, 4), clock_offset=0.0)
     rd = readings_table([(0.01 * k, "cf1", "ultrasonic/0", 1.5 * scale) for k in range(50)])
-    with pytest.raises(RecordingError, match=f"ultrasonic readings have a median .* looks like {unit}"):
+    with pytest.raises(RecordingError, match=f"stream 'cf1:ultrasonic/0' has a median .* looks like {unit}"):
         build_flight(rec(readings=rd), (3, 4), sonar_yaw=YAW4, sonar_offset=0.1, clock_offset=0.0)
 
 
@@ -284,7 +284,7 @@ def test_round_trip_csv_cli_auto_offset_and_no_gap(simulated, tmp_path):
     assert "clock offset +0.3" in p.stdout
     imported = load(tmp_path / "f.npz")
     c = imported.meta["import"]["clock_offset"]
-    assert abs(c["seconds"] - TRUE_OFFSET) < 0.05  # within one sonar sample (20 Hz): the README's claim
+    assert abs(c["seconds"] - TRUE_OFFSET) < 0.05  # within one sonar sample (20 Hz): docs/user-guide/import.md's claim
     assert c["uncertainty"] < 0.05
     # and within 5 of its own standard errors (the importer's bootstrap SD of the loss minimum)
     assert_within_se(c["seconds"], TRUE_OFFSET, c["uncertainty"], what="auto clock offset (s)")

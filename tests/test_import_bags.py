@@ -69,6 +69,20 @@ def test_each_bag_kind_reads_back_what_was_written(tmp_path, kind):
     assert back.notes["messages"]["/cf1/pose"] == 40
 
 
+def test_heights_round_trip_through_a_bag(tmp_path):
+    """A tracking with a z column goes into position.z with height = true in the topics file, and comes back."""
+    rec = small_recording()
+    rec = Recording(rec.tracking.assign(z=np.linspace(0.4, 1.8, len(rec.tracking))), rec.readings, "test")
+    topics = write_bag(rec, tmp_path / "bag2", "rosbag2")
+    assert "height = true" in topics
+    back = read_bag(tmp_path / "bag2", topics)
+    want = rec.tracking.sort_values(["copter", "t"]).reset_index(drop=True)
+    np.testing.assert_array_equal(back.tracking.sort_values(["copter", "t"]).z.to_numpy(), want.z.to_numpy())
+    mixed = topics.replace("height = true", "height = false", 1)
+    with pytest.raises(RecordingError, match="height = true on some"):
+        read_bag(tmp_path / "bag2", mixed)
+
+
 @settings(max_examples=12, deadline=None)
 @given(st.integers(0, 10_000), st.integers(1, 3))
 def test_rosbag2_round_trip_property(tmp_path_factory, seed, n):
@@ -217,7 +231,7 @@ def test_every_format_imports_to_the_csv_flight(exported, kind):
     np.testing.assert_array_equal(from_bag.imu_gyro, from_csv.imu_gyro)
     auto = _cli(log, d, ["--bag", str(bag), "--topics", str(d / f"{kind}.toml")], d / f"{kind}-auto.npz", offset="auto")
     c = auto.meta["import"]["clock_offset"]
-    assert abs(c["seconds"] - 0.3) < 0.05  # within one sonar sample: the README's claim
+    assert abs(c["seconds"] - 0.3) < 0.05  # within one sonar sample: docs/user-guide/import.md's claim
     # and within 5 of its own standard errors (the importer's bootstrap SD of the loss minimum)
     assert_within_se(c["seconds"], 0.3, c["uncertainty"], what=f"auto clock offset from a {kind} bag (s)")
 

@@ -250,3 +250,26 @@ def test_shape_errors_name_the_argument():
         imu_step(np.zeros((2, 3, 2)), np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3, 3)), params, 0, [0], 0)
     with pytest.raises(ConfigError, match="yaw_rate"):
         imu_step(np.zeros((2, 3, 2)), np.zeros((2, 3)), np.zeros((3, 2)), np.zeros((2, 3, 3)), params, 0, [0, 1], 0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.floats(-0.5, 0.5), st.integers(0, 2**31))
+def test_constant_biases_match_reference(bx, by, bg, seed):
+    """``imu.acc_bias`` / ``imu.gyro_bias`` (ImuModel's constant biases) add to every reading, as the NumPy twin."""
+    rng = np.random.default_rng(seed)
+    B, N = 2, 3
+    acc, yaw, yaw_rate = (a[0] for a in _motion(rng, 1, B, N))
+    env_ids = np.array([0, 5])
+    bias0 = rng.normal(0.0, 0.1, (B, N, 3))
+    params = _model()._replace(acc_bias_x=bx, acc_bias_y=by, gyro_bias=bg)
+    a, g = imu_step(acc, yaw, yaw_rate, bias0.copy(), params, seed, env_ids, 4)
+    ref_a, ref_g, _ = imu_step_ref(acc, yaw, yaw_rate, bias0, seed=seed, env_ids=env_ids, step=4,
+                                   constant=(bx, by, bg), **DENS)
+    np.testing.assert_allclose(a, ref_a, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(g, ref_g, rtol=0, atol=1e-12)
+
+
+def test_constant_biases_come_from_the_config():
+    m = ImuModel.from_config(ImuConfig(acc_bias=(0.1, -0.2), gyro_bias=0.03), 0.05)
+    assert (m.acc_bias_x, m.acc_bias_y, m.gyro_bias) == (0.1, -0.2, 0.03)
+    assert ImuModel.from_config(ImuConfig(), 0.05)[5:] == (0.0, 0.0, 0.0)

@@ -5,7 +5,7 @@ A task is an object with ``reset(ctx, pos)`` (called at every reset, all B envir
 ``reward(ctx, world) -> (B,) float64`` (called after every step with the new
 :class:`~finkensim.world.WorldState`). ``ctx`` is a :class:`TaskContext` (arena size, copter radius, dt).
 The reward is a team reward: every copter of an environment shares it (the PettingZoo env gives it
-to each agent). Register your own with :func:`register_task`:
+to each agent). Register your own with :func:`register_task`::
 
     class Centre:
         def reset(self, ctx, pos): pass

@@ -1,7 +1,7 @@
 """Flight logs: one flight in one ``.npz`` file (format ``finkensim-flightlog/1``).
 
-The format is specified in ``spec/flightlog.md`` (the project's shared specification); this package is its reference
-implementation. The simulator writes logs with :func:`save`, real arena recordings are
+The format is specified in ``docs/formats/flightlog.md`` (the format the project publishes); this package is its
+reference implementation. The simulator writes logs with :func:`save`, real arena recordings are
 converted with :func:`from_csv` (or by any external tool writing the same arrays), and every
 consumer reads them with :func:`load`. Every problem is a :class:`FlightLogError` whose message
 names the array, what is wrong and what was expected.
@@ -17,9 +17,10 @@ NaN and stay NaN: nothing in this package drops, fills, interpolates or rescales
 from __future__ import annotations
 
 from .csv import from_csv
-from .format import DEFAULT_COPTER_RADIUS, DEFAULT_SONAR_YAW, FORMAT, SONAR_NAMES, FlightLog, FlightLogError
+from .format import (DEFAULT_COPTER_RADIUS, DEFAULT_SONAR_YAW, FORMAT, HEIGHTS, SONAR_NAMES, FlightLog, FlightLogError,
+                     heights)
 from .npz import load, save
 from .validation import validate
 
-__all__ = ["FORMAT", "SONAR_NAMES", "DEFAULT_SONAR_YAW", "DEFAULT_COPTER_RADIUS", "FlightLogError", "FlightLog",
+__all__ = ["FORMAT", "HEIGHTS", "heights", "SONAR_NAMES", "DEFAULT_SONAR_YAW", "DEFAULT_COPTER_RADIUS", "FlightLogError", "FlightLog",
            "validate", "save", "load", "from_csv"]

@@ -27,9 +27,9 @@ def _natural_key(s: str):
     return [(0, int(tok), "") if tok.isdigit() else (1, 0, tok) for tok in re.split(r"(\d+)", s) if tok != ""]
 
 
-def read_table(path: Path, columns, where: str):
+def read_table(path: Path, columns, where: str, optional=()):
     """(df, lines): the CSV at ``path`` as a DataFrame of stripped strings with exactly the header ``columns`` (in
-    any order), blank rows removed, and the 1-based file line of each row. Errors name ``where``: a missing or
+    any order; plus any of the ``optional`` columns), blank rows removed, and the 1-based file line of each row. Errors name ``where``: a missing or
     empty file, unparseable text, missing / unknown / repeated columns, no data rows."""
     import pandas as pd
 
@@ -44,7 +44,7 @@ def read_table(path: Path, columns, where: str):
     df.columns = [str(c).strip() for c in df.columns]
     cols = list(df.columns)
     missing = [c for c in columns if c not in cols]
-    unknown = [c for c in cols if c not in columns]
+    unknown = [c for c in cols if c not in columns and c not in optional]
     dup_cols = sorted({c for c in cols if cols.count(c) > 1})
     if missing or unknown or dup_cols:
         parts = []
@@ -56,6 +56,7 @@ def read_table(path: Path, columns, where: str):
             parts.append(f"repeated column(s) {', '.join(map(repr, dup_cols))}")
         raise FlightLogError(
             f"{where}: {'; '.join(parts)}; expected a header row with exactly the columns {', '.join(columns)}"
+            + (f" (optional: {', '.join(optional)})" if optional else "")
         )
     lines = np.arange(len(df)) + 2  # 1-based file line numbers (line 1 is the header)
     blank = (df.fillna("").apply(lambda col: col.str.strip()) == "").all(axis=1).to_numpy()

@@ -1,6 +1,6 @@
 """The flight-log record and its array schema (format ``finkensim-flightlog/1``).
 
-The format is specified in ``spec/flightlog.md`` (the project's shared specification). This module holds the
+The format is specified in ``docs/formats/flightlog.md`` (the format the project publishes). This module holds the
 :class:`FlightLog` record, the names of the standard arrays and the error type; checking
 a log is :mod:`.validation`, files are :mod:`.npz` and :mod:`.csv`.
 
@@ -19,6 +19,8 @@ Arrays (all float64 unless stated; T samples, N copters, S sonars)::
     imu_gyro           (T, N)    rad/s  with imu_acc; yaw rate
     meta               str, 0-d      optional JSON object (copter_radius, altitude, source,
                                      tracking_sigma_xy, tracking_sigma_yaw, anything else)
+    z                  (T, N)    m   optional extra (a version-1 extra array, so every reader keeps it): each
+                                     copter's height; ranging is then compared with 3-D distances
 
 Frame: origin at one arena corner, x along the width, y along the length. Missing readings are
 NaN and stay NaN: nothing in this package drops, fills, interpolates or rescales data.
@@ -42,8 +44,10 @@ __all__ = [
     "STANDARD",
     "BLOCKS",
     "RESERVED_EXTRAS",
+    "HEIGHTS",
     "FlightLogError",
     "FlightLog",
+    "heights",
 ]
 
 FORMAT = "finkensim-flightlog/1"
@@ -80,8 +84,21 @@ RESERVED_EXTRAS = ("file", "allow_pickle")
 """Keyword names of ``np.savez_compressed`` itself: an extra array cannot be called like this."""
 
 
+HEIGHTS = "z"
+"""Name of the optional extra array of heights (T, N) m (version 1 allows extra arrays, so logs stay readable)."""
+
+
+def heights(log: "FlightLog") -> np.ndarray | None:
+    """The log's heights (T, N) m as float64, or None when it has no ``z`` extra (a planar flight)."""
+    z = (log.extras or {}).get(HEIGHTS)
+    return None if z is None else np.asarray(z, dtype=np.float64)
+
+
 class FlightLogError(ValueError):
-    """A flight log (file or object) is wrong. The message names the array, the problem and what was expected."""
+    """A flight log (file or object) is wrong. The message names the array, the problem and what was expected.
+
+    A :class:`ValueError`; the command line reports it in one line (exit code 2), without a traceback.
+    """
 
 
 def _nan_equal(a: Any, b: Any) -> bool:
@@ -109,24 +126,35 @@ class FlightLog:
     (:func:`save`, :func:`load` and :func:`from_csv` do). Equality (``==`` / :meth:`equals`)
     compares every array by value with NaN equal to NaN, ``meta`` and ``extras`` included.
 
-    Attributes:
-        t: (T,) sample times in s, strictly increasing.
-        arena: (2,) arena width (x extent) and length (y extent) in m.
-        pose: (T, N, 3) ground-truth x (m), y (m), yaw (rad, counter-clockwise from +x) of each
-            copter, in the arena frame (origin at a corner, positions in [0, width] x [0, length]).
-        copter_ids: (N,) unique copter names (str array).
-        ultrasonic: optional (T, N, S) sonar readings in m, measured from the sonar; NaN = no reading.
-        ultrasonic_yaw: (S,) mounting yaw in rad relative to the heading (front 0, left +pi/2,
-            back pi, right -pi/2); present exactly when ``ultrasonic`` is.
-        ultrasonic_offset: distance in m from the copter centre to each sonar; present exactly
-            when ``ultrasonic`` is.
-        ranging: optional (T, N, N) virtual-ranging distances in m; row = measuring copter;
-            NaN = no reading; diagonal exactly 0.
-        imu_acc: optional (T, N, 2) body-frame acceleration in m/s^2 (present with ``imu_gyro``).
-        imu_gyro: optional (T, N) yaw rate in rad/s (present with ``imu_acc``).
-        meta: JSON object: ``copter_radius`` (m), ``altitude`` (m), ``source``,
-            ``tracking_sigma_xy`` (m), ``tracking_sigma_yaw`` (rad), anything else.
-        extras: any other arrays by name; saved and loaded unchanged.
+    Parameters
+    ----------
+    t : ndarray, shape (T,)
+        Sample times, s, strictly increasing.
+    arena : ndarray, shape (2,)
+        Arena width (x extent) and length (y extent), m.
+    pose : ndarray, shape (T, N, 3)
+        Ground-truth x (m), y (m), yaw (rad, counter-clockwise from +x) of each copter, in the arena frame
+        (origin at a corner, positions in [0, width] x [0, length]).
+    copter_ids : ndarray of str, shape (N,)
+        Unique copter names.
+    ultrasonic : ndarray, shape (T, N, S), optional
+        Sonar readings, m, measured from the sonar; NaN = no reading.
+    ultrasonic_yaw : ndarray, shape (S,), optional
+        Mounting yaw relative to the heading, rad (front 0, left +pi/2, back pi, right -pi/2); present
+        exactly when ``ultrasonic`` is.
+    ultrasonic_offset : float, optional
+        Distance from the copter centre to each sonar, m; present exactly when ``ultrasonic`` is.
+    ranging : ndarray, shape (T, N, N), optional
+        Virtual-ranging distances, m; row = measuring copter; NaN = no reading; diagonal exactly 0.
+    imu_acc : ndarray, shape (T, N, 2), optional
+        Body-frame acceleration, m/s² (present with ``imu_gyro``).
+    imu_gyro : ndarray, shape (T, N), optional
+        Yaw rate, rad/s (present with ``imu_acc``).
+    meta : dict
+        JSON object: ``copter_radius`` (m), ``altitude`` (m), ``source``, ``tracking_sigma_xy`` (m),
+        ``tracking_sigma_yaw`` (rad), anything else.
+    extras : dict of str to ndarray
+        Any other arrays by name; saved and loaded unchanged.
     """
 
     t: np.ndarray
@@ -193,7 +221,17 @@ class FlightLog:
 
     # -- comparison ---------------------------------------------------------------------------
     def equals(self, other: "FlightLog") -> bool:
-        """True if every array, ``meta`` and ``extras`` are equal (NaN equals NaN, values not dtypes)."""
+        """True if every array, ``meta`` and ``extras`` are equal (NaN equals NaN, values not dtypes).
+
+        Parameters
+        ----------
+        other : FlightLog
+            The log to compare with (anything else compares unequal).
+
+        Returns
+        -------
+        bool
+        """
         if not isinstance(other, FlightLog):
             return False
         for name in REQUIRED + OPTIONAL:

@@ -32,6 +32,20 @@ def save(log: FlightLog, path: str | os.PathLike, *, check_units: bool = True) -
     file in the same directory, so a failed save leaves no partial file. Numeric arrays are
     stored as float64, ``format`` and ``meta`` as 0-d str arrays, ``copter_ids`` as a unicode
     str array, extras unchanged.
+
+    Parameters
+    ----------
+    log : FlightLog
+        The flight to write.
+    path : str or PathLike
+        Where to write it (exactly this name).
+    check_units : bool
+        Include the unit checks (values that look like cm or mm, times like ms) in the validation.
+
+    Raises
+    ------
+    FlightLogError
+        The log is not valid; nothing is written.
     """
     validate_log(log, check_units=check_units)
     arrays: dict[str, np.ndarray] = {"format": np.array(FORMAT)}
@@ -80,9 +94,29 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
     array, a wrong or missing ``format``, missing required arrays or a ``meta`` that is not a
     JSON object, an integer array where the format asks for float64 (anything but ``arena`` and
     ``ultrasonic_offset``), arrays larger than the available memory (checked from the headers
-    before anything is read, :mod:`finkensim.budget`) always raise :class:`FlightLogError` naming the file; ``validate=False`` skips
-    only the content checks of :func:`validate`. Numeric arrays are returned as float64;
-    arrays the format does not name go to ``extras``.
+    before anything is read, :mod:`finkensim.budget`) always raise :class:`FlightLogError` naming the
+    file; ``validate=False`` skips only the content checks of :func:`validate`. Numeric arrays are
+    returned as float64; arrays the format does not name go to ``extras``.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The ``.npz`` file (format ``finkensim-flightlog/1``, ``docs/formats/flightlog.md``).
+    validate : bool
+        Check the content (shapes, units, arena, ranges) with :func:`validate` (default True).
+    check_units : bool
+        Include the unit checks (values that look like cm or mm, times like ms) in the validation.
+
+    Returns
+    -------
+    FlightLog
+        The flight: ``t`` (T,) s, ``pose`` (T, N, 3) m, m, rad and the sensor blocks present in the file.
+
+    Raises
+    ------
+    FlightLogError
+        The file cannot be read as a flight log, or (with ``validate``) its content is wrong; the message
+        names the file, the array and what was expected.
     """
     do_validate = validate
     p = Path(path)

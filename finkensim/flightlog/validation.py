@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .encoding import as_text, meta_to_json
-from .format import (BLOCKS, DEFAULT_COPTER_RADIUS, NUMERIC, REQUIRED, RESERVED_EXTRAS, STANDARD, FlightLog,
+from .format import (BLOCKS, DEFAULT_COPTER_RADIUS, HEIGHTS, NUMERIC, REQUIRED, RESERVED_EXTRAS, STANDARD, FlightLog,
                      FlightLogError)
 from .messages import fmt, plural, shape_text, unit_hint, where
 
@@ -168,7 +168,7 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
     finite and positive; ``meta`` fields (``copter_radius`` > 0, ``altitude``,
     ``tracking_sigma_*`` >= 0, ``source`` str); unique ``copter_ids``; finite poses inside the
     arena up to one copter radius (``meta['copter_radius']``, default 0.15 m); readings: no
-    infinities (NaN is the only "no reading"), no negative distances (NaN ignored), ranging
+    infinities (NaN is the only "no reading"), the optional extra ``z`` (T, N) m heights finite, no negative distances (NaN ignored), ranging
     diagonal exactly 0 (NaN there is an error); integer dtypes only for ``arena`` and
     ``ultrasonic_offset`` (an integer ``pose`` or ``t`` is an error, never truncated); ``ultrasonic_yaw`` finite and within +-2 pi
     (larger values look like degrees); ``ultrasonic_offset`` finite and >= 0.
@@ -208,6 +208,24 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
         _check_ranging(arrays["ranging"], t, ids, check_units)
     if "imu_acc" in arrays:
         _check_imu(arrays["imu_acc"], arrays["imu_gyro"], t, ids, check_units)
+    if HEIGHTS in log.extras:
+        _check_heights(np.asarray(log.extras[HEIGHTS]), t, ids, check_units)
+
+
+def _check_heights(z: np.ndarray, t: np.ndarray, ids: np.ndarray, check_units: bool) -> None:
+    """The optional extra ``z`` (T, N) m, each copter's height: real numbers of that shape, finite (a height is
+    tracked with the pose), median |z| not like cm or mm."""
+    shape = (t.shape[0], ids.shape[0])
+    if z.dtype.kind not in "iuf" or z.shape != shape:
+        raise FlightLogError(f"z (heights) has shape {z.shape} and dtype {z.dtype}; expected float64 of shape (T, N) = "
+                             f"{shape}, each copter's height in m")
+    bad = ~np.isfinite(z)
+    if bad.any():
+        i, c = np.argwhere(bad)[0]
+        raise FlightLogError(f"z (heights) is {z[i, c]} for {where(t, ids, (i, c), 'tc')} ({plural(int(bad.sum()), 'bad value')}); "
+                             "expected finite heights in m (heights come with the tracked pose)")
+    if check_units:
+        _check_median_units("z (heights)", z.astype(np.float64), RANGE_CM_ABOVE, RANGE_MM_ABOVE)
 
 
 # ------------------------------------------------------------------------------------------

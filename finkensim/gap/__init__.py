@@ -10,7 +10,8 @@ from .effects import Effect, Param, register
 from .model import ModelParams
 from .replay import GapInputError
 from .result import GapDetails, GapReport
-from .selection import diagnose, run_diagnosis
+from .pipeline import diagnose
+from .selection import run_diagnosis
 
 __all__ = ["diagnose", "run_diagnosis", "Diagnosis", "GapReport", "GapDetails", "ModelParams", "Effect", "Param",
            "register", "GapInputError"]

@@ -19,12 +19,15 @@ from ..flightlog import FlightLog
 
 __all__ = ["Conventions", "draw_conventions", "DEFAULT_CONVENTIONS", "NO_ECHO", "NOISE"]
 
-# max_range exactly; max_range + noise clipped; the value 0; NaN ("no reading", as spec/flightlog.md allows)
+# max_range exactly; max_range + noise clipped; the value 0; NaN ("no reading", as docs/formats/flightlog.md allows)
 NO_ECHO = ("exact", "noisy_clipped", "zero", "nan")
+"""How a lost sonar echo may be logged: ``max_range`` exactly, ``max_range`` plus noise clipped, 0, or NaN."""
 # the random axis of gap-validate (the issue's three; "nan" is validated by tests and explicit runs, since adding it
 # to the draw would change the conventions of every random trial of the matrices already measured)
 NO_ECHO_DRAWN = NO_ECHO[:3]
+"""The lost-echo conventions ``gap-validate`` draws from (NaN is tested but not drawn)."""
 NOISE = ("rayleigh", "gaussian", "laplace")  # base sonar noise of the "real" readings (same σ)
+"""Base sonar noise laws of the simulated "real" readings (same σ)."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +95,7 @@ class Conventions:
 
 
 DEFAULT_CONVENTIONS = Conventions()
+"""finkensim's own recording conventions (:class:`Conventions` with its defaults)."""
 
 
 def draw_conventions(rng: np.random.Generator) -> Conventions:

@@ -26,6 +26,7 @@ __all__ = ["Correction", "fit_correction", "QUANTILES"]
 
 QUANTILES = 19  # quantile levels of the correction's predictive distribution
 MAX_TRAIN_ROWS = 20000
+MIN_TRAIN_ROWS = 200  # fewer training readings with a value: no correction (the report says so)
 METHOD = "sklearn HistGradientBoostingRegressor, quantile loss, {q} levels, residual on features + model median"
 
 
@@ -65,7 +66,7 @@ def _fit_sensor(diag, sensor, p, located):
     D, y, _ = diag.censored_draws(sensor, p, rows_fit)
     med = np.median(D, axis=1)
     ok = np.isfinite(y) & np.isfinite(med)
-    if ok.sum() < 200:
+    if ok.sum() < MIN_TRAIN_ROWS:
         return None
     X, names = _design(tab, rows_fit[ok], med[ok])
     r = (y - med)[ok]
@@ -103,12 +104,15 @@ def _fit_sensor(diag, sensor, p, located):
     return names, score, expected, pd
 
 
-def fit_correction(diag, p, sensors, located: dict | None = None) -> Correction | None:
+def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | None = None) -> Correction | None:
     """Fit the correction of each sensor in ``sensors`` (those with a significant gap) under the model
     ``p``; located: sensor → features of its significant locations, most significant first (for the
-    partial-dependence plot). Returns None when scikit-learn is missing or no sensor has enough readings."""
+    partial-dependence plot). Returns None when scikit-learn is missing or no sensor has enough readings;
+    ``why`` (a dict, filled in) says, per sensor (or "all"), why no correction was fitted."""
+    why = {} if why is None else why
     if importlib.util.find_spec("sklearn") is None:  # optional dependency ([fit] extra): said in the report
         diag.say("  scikit-learn is not installed: no data-driven correction")
+        why["all"] = "scikit-learn is not installed (pip install 'finkensim[fit]')"
         return None
     located = located or {}
     out = None
@@ -118,6 +122,8 @@ def fit_correction(diag, p, sensors, located: dict | None = None) -> Correction 
         diag.say(f"  fitting a data-driven correction of {s}")
         fitted = _fit_sensor(diag, s, p, located.get(s, []))
         if fitted is None:
+            why[s] = (f"too few training readings with a value ({int(np.isfinite(diag.tables[s].y[diag.rows_fit[s]]).sum())}"
+                      f" < {MIN_TRAIN_ROWS}) to fit a correction")
             continue
         names, score, expected, pd = fitted
         if out is None:

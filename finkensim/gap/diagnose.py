@@ -12,7 +12,7 @@
 4. **Which**: fit every catalogued effect (:mod:`.effects`) on the training flights, score it on
    held-out flights (:meth:`Diagnosis.fit`, :meth:`Diagnosis.score_heldout`).
 
-Steps 4's selection and 5, the verdict per ``spec/gap-report.md``, are :mod:`.selection`.
+Steps 4's selection and 5, the verdict per ``docs/formats/gap-report.md``, are :mod:`.selection`.
 """
 from __future__ import annotations
 
@@ -30,6 +30,7 @@ from . import effects as fx
 from ..sensors.sonar_model import ERROR_NONE
 from .censoring import detect_censoring
 from .fits import CUSTOM_FITS, nelder_mead
+from .limits import range_limits
 from .model import ModelParams
 from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
@@ -37,11 +38,40 @@ from .scoring import brier, brier_gap, ensemble_terms_grouped
 from .stats import BlockBootstrap, fdr_significant
 
 SENSORS = ("ultrasonic", "ranging", "imu")
+#: a location (one bin of one feature) needs at least this many readings
+MIN_BIN_READINGS = 30
 DISCRETE_FEATURES = {"hit_type", "neighbor_in_beam", "axis"}
 
 
 @dataclass
 class FitResult:
+    """One effect fitted by :meth:`Diagnosis.fit` and, once scored, by :meth:`Diagnosis.score_heldout`.
+
+    Scores and gaps are per reading, normalised by each sensor's scale and averaged over the sensors (lower
+    is better); NaN until scored.
+
+    Parameters
+    ----------
+    name : str
+        The effect's name.
+    values : dict
+        Fitted parameter values (name → value, in the parameters' units).
+    params : ModelParams
+        The model with the effect added at ``values``.
+    score_train : float
+        Mean CRPS on the training rows (the fit's objective).
+    score_heldout : float
+        Mean CRPS on the held-out rows.
+    gap_train : float
+        Mean gap on the training rows.
+    gap_heldout : float
+        Mean gap on the held-out rows.
+    rows_score : dict
+        Sensor → per-row held-out CRPS, shape (n,).
+    rows_gap : dict
+        Sensor → per-row held-out gap, shape (n,).
+    """
+
     name: str
     values: dict
     params: ModelParams
@@ -56,18 +86,31 @@ class FitResult:
 class Diagnosis:
     """Holds the prepared flights, tables and row sets; evaluates models; runs the search.
 
-    Args:
-        logs: flight logs; names: their names (file names) in the same order.
-        cfg: simulator configuration (error models, walls, ``[gap]`` settings).
-        heldout: names of held-out flights (default: every other flight; a single flight's second
-            half is held out).
-        progress: a callable ``progress(message)`` or None.
+    Parameters
+    ----------
+    logs : list of FlightLog
+        The flights to diagnose.
+    names : list of str
+        Their names (file names), in the same order.
+    cfg : Config
+        Simulator configuration (error models, walls, ``[gap]`` settings).
+    heldout : list of str, optional
+        Names of the held-out flights (default: every other flight; a single flight's second half is held
+        out).
+    progress : callable, optional
+        ``progress(message)``, told what the diagnosis is doing.
+    seed : int
+        Seed of the predictive draws (common random numbers for every model evaluated).
+    limits : {"config", "from-log"}
+        "config": readings beyond a sensor's configured ``max_range`` are a named error; "from-log": such limits
+        are raised to the logs' largest reading (:mod:`.limits`); ``limit_notes`` says what was taken from the logs.
     """
 
     def __init__(self, logs: list[FlightLog], names: list[str], cfg: Config, heldout: list[str] | None = None,
-                 progress: Callable[[str], None] | None = None, seed: int = 20261122):
+                 progress: Callable[[str], None] | None = None, seed: int = 20261122, limits: str = "config"):
         if not logs:
             raise GapInputError("no flight logs given: expected at least one REAL.npz")
+        cfg, self.limit_notes = range_limits(cfg, logs, names, limits)
         self.cfg = cfg
         self.seed = int(seed)
         self.M = cfg.gap.draws
@@ -266,13 +309,16 @@ class Diagnosis:
 
     # ------------------------------------------------------------------ where
     def locations(self, p: ModelParams):
-        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap."""
+        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap; each bin also carries
+        ``_residual``, the median of reading − model median in the sensor's own unit (m for the range sensors)."""
         cfg = self.cfg.gap
         res, rows = self.evaluate(p, "all")
         locs = []
         for s, (_, gap) in res.items():
             tab = self.tables[s]
             r = rows[s]
+            D, y, _ = self.censored_draws(s, p, r)
+            resid = y - np.median(D, axis=1)
             bb = BlockBootstrap(self.block_ids(s, r), n_boot=cfg.n_boot, seed=self.seed)
             chans = [("all", np.ones(r.size, bool))]
             if s == "ultrasonic" and len(tab.channel_names) > 1:
@@ -281,16 +327,18 @@ class Diagnosis:
                 for feat, fv in tab.features.items():
                     v = fv[r]
                     ok = np.isfinite(v) & cmask
-                    if ok.sum() < 30:
+                    if ok.sum() < MIN_BIN_READINGS:
                         continue
                     for lo, hi in _bins(v[ok], feat, cfg.n_bins):
                         m = ok & (v >= lo) & (v < hi)
-                        if m.sum() < 30:
+                        if m.sum() < MIN_BIN_READINGS:
                             continue
                         st = bb.stats(gap, m)
+                        rm = resid[m & np.isfinite(resid)]
                         locs.append({"sensor": s, "channel": cname, "feature": feat, "low": float(lo),
                                      "high": float(hi) if np.isfinite(hi) else 1e9, "gap": st.mean,
-                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive})
+                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive,
+                                     "_residual": float(np.median(rm)) if rm.size else math.nan})
         sig = fdr_significant([loc["_p"] for loc in locs], cfg.alpha)
         for loc, sg in zip(locs, sig):
             loc["_significant"] = bool(sg) and loc["gap"] > cfg.margin
@@ -314,7 +362,20 @@ class Diagnosis:
         return tot
 
     def fit(self, effect: fx.Effect, current: ModelParams) -> FitResult:
-        """Fit an effect's parameters on the training rows (others fixed at ``current``)."""
+        """Fit an effect's parameters on the training rows (the rest of the model fixed at ``current``).
+
+        Parameters
+        ----------
+        effect : Effect
+            The effect to fit.
+        current : ModelParams
+            The model it is added to.
+
+        Returns
+        -------
+        FitResult
+            The fitted values and the training score; held-out fields NaN (see :meth:`score_heldout`).
+        """
         vals = dict(effect.start(current))
         sensors = [s for s in effect.sensors if s in self.tables]
         custom = effect.extra.get("fit") or CUSTOM_FITS.get(effect.name)
@@ -360,6 +421,21 @@ class Diagnosis:
         return nelder_mead(f, vals, group, best_x, best_f)
 
     def score_heldout(self, res: FitResult, gap_before_parts=None):
+        """Score a fitted effect on the held-out rows (and its gap on the training rows).
+
+        Parameters
+        ----------
+        res : FitResult
+            A result of :meth:`fit`; updated in place.
+        gap_before_parts : object, optional
+            Not used (kept for callers that pass the configured model's gap).
+
+        Returns
+        -------
+        FitResult
+            ``res``, with ``score_heldout``, ``gap_heldout``, ``gap_train``, ``rows_score`` and ``rows_gap``
+            set (per reading, normalised; lower is better).
+        """
         ev, rows = self.evaluate(res.params, "heldout")
         res.rows_score = {s: c for s, (c, _) in ev.items()}
         res.rows_gap = {s: g for s, (_, g) in ev.items()}

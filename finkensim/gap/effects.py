@@ -17,12 +17,18 @@ Add your own in a notebook::
 
 ``apply(base, values)`` must be pure. ``expected_features`` (optional) lists the location
 features where the effect is expected to show up; only ``finkensim gap-validate`` uses it.
+``calibrate(values, cfg)`` (optional) returns the config updates (dotted keys) under which the simulator flies the
+fitted effect: ``ModelParams.from_config(cfg.replace(calibrate(v, cfg)))`` must equal ``apply(from_config(cfg), v)``
+(``tests/test_calibrate.py`` checks it for every catalogued effect that has one). An effect without it is not flown
+by the simulator yet; a calibrated config says so (:mod:`finkensim.gap.calibrate`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 from typing import Callable
+
+from ..config import Config
 
 from ..sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
                                    SCHEDULE_SIMULTANEOUS)
@@ -31,7 +37,19 @@ from .model import ModelParams
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: bounds [lo, hi] in the unit of ``unit``; ``integer`` for step counts."""
+    """One parameter of an :class:`Effect`, fitted within its bounds.
+
+    Parameters
+    ----------
+    name : str
+        The key of the parameter in the values dict ``apply`` receives.
+    lo, hi : float
+        Bounds of the fit, in ``unit``.
+    integer : bool
+        An integer parameter (a step count): fitted over every integer in [lo, hi].
+    unit : str
+        Unit of the parameter (``"m"``, ``"s"``, ``""`` for a factor), shown in the report.
+    """
 
     name: str
     lo: float
@@ -42,6 +60,42 @@ class Param:
 
 @dataclass(frozen=True)
 class Effect:
+    """A candidate unmodelled effect: how a set of parameter values changes the simulator's sensor model.
+
+    Register one with :func:`register`; the diagnosis fits its parameters on the training flights
+    (minimising the mean CRPS of the sensors it changes) and scores it on the held-out flights.
+
+    Parameters
+    ----------
+    name : str
+        Unique name (the report's ``effects[].name``).
+    sensors : tuple of str
+        The sensors it changes: ``"ultrasonic"``, ``"ranging"``, ``"imu"``.
+    params : tuple of Param
+        Its parameters, with bounds and units.
+    apply : callable
+        ``apply(base, values) -> ModelParams``: the base :class:`~finkensim.gap.model.ModelParams` with the
+        effect added at ``values`` (parameter name → value); must be pure.
+    doc : str
+        One sentence for the report: what the effect is.
+    initial : callable, optional
+        ``initial(base) -> values``: the starting point of the fit (default: each parameter at ``lo``, or 0
+        when ``lo`` < 0).
+    expected_features : tuple of str
+        Location features where the effect is expected to show up (only ``finkensim gap-validate`` uses it).
+    catch_all : bool
+        An effect that absorbs part of any gap (a scale, a bias, pose noise): it is named only when no
+        structured effect comes within the tie tolerance of it.
+    separable : bool
+        Its parameters act on different sensors and are fitted one at a time.
+    calibrate : callable, optional
+        ``calibrate(values, cfg) -> updates``: the config updates (dotted keys) under which the simulator flies
+        the effect at ``values`` on top of ``cfg`` (:mod:`finkensim.gap.calibrate`); None = not flown yet.
+    extra : dict
+        Anything else; ``extra["fit"]`` replaces the generic fit: ``fit(diagnosis, effect, current, values)
+        -> values``.
+    """
+
     name: str
     sensors: tuple[str, ...]
     params: tuple[Param, ...]
@@ -51,10 +105,22 @@ class Effect:
     expected_features: tuple[str, ...] = ()
     catch_all: bool = False
     separable: bool = False  # parameters act on different sensors and are fitted one at a time
+    calibrate: Callable[[dict, Config], dict] | None = None
     extra: dict = field(default_factory=dict)
 
     def start(self, base: ModelParams) -> dict:
-        """Parameter values that reproduce the base model (or the effect's neutral values)."""
+        """Parameter values that reproduce the base model (or the effect's neutral values).
+
+        Parameters
+        ----------
+        base : ModelParams
+            The model the effect is added to.
+
+        Returns
+        -------
+        dict
+            Parameter name → starting value, in the parameters' units.
+        """
         if self.initial is not None:
             return self.initial(base)
         return {p.name: (p.lo if p.lo >= 0 else 0.0) for p in self.params}
@@ -62,9 +128,41 @@ class Effect:
 
 REGISTRY: dict[str, Effect] = {}
 
+#: a fitted value within this share of its range from a bound sits at the bound
+AT_BOUND_SHARE = 0.01
+
+
+def at_bound(effect: Effect, values: dict, base: ModelParams) -> list[str]:
+    """Names of the parameters of ``effect`` whose fitted ``values`` sit at a bound of their range (within
+    :data:`AT_BOUND_SHARE` of it), leaving out a bound that is the effect's neutral value (no dropout, no delay):
+    the fit wanted to go further, so the range is too narrow or another effect is at work."""
+    neutral = effect.start(base)
+    out = []
+    for prm in effect.params:
+        v = values.get(prm.name)
+        if v is None or not math.isfinite(float(v)):
+            continue
+        tol = AT_BOUND_SHARE * (prm.hi - prm.lo)
+        for bound in (prm.lo, prm.hi):
+            if abs(float(v) - bound) <= tol and abs(float(neutral.get(prm.name, math.nan)) - bound) > tol:
+                out.append(prm.name)
+                break
+    return out
+
 
 def register(effect: Effect) -> Effect:
-    """Add (or replace) an effect in the catalogue; returns it."""
+    """Add (or replace) an effect in the catalogue.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect; an effect of the same name is replaced.
+
+    Returns
+    -------
+    Effect
+        ``effect`` itself (so that ``register`` can wrap a definition).
+    """
     REGISTRY[effect.name] = effect
     return effect
 
@@ -73,6 +171,32 @@ def _rayleigh_scale(base: ModelParams, v: dict) -> ModelParams:
     sigma0 = base.sonar.sigma if base.sonar.sigma > 0 else 0.05
     err = base.sonar.error if base.sonar.error != ERROR_NONE else ERROR_RAYLEIGH
     return base.with_sonar(error=err, sigma=sigma0 * v["scale"])
+
+
+def _cal_rayleigh_scale(v: dict, cfg: Config) -> dict:
+    out = {"sonar.sigma": (cfg.sonar.sigma if cfg.sonar.sigma > 0 else 0.05) * v["scale"]}
+    if cfg.sonar.error == "none":
+        out["sonar.error"] = "rayleigh"
+    return out
+
+
+def _cal_crosstalk(kind: str, probability_key: str):
+    """The calibration of one cross-talk model: switch it on beside the configured one (geometric without a
+    configured schedule fires every copter at once, as the effect assumes)."""
+    def cal(v: dict, cfg: Config) -> dict:
+        now = cfg.sonar.crosstalk
+        out = {probability_key: v["probability"]}
+        if kind not in now.split("+"):
+            out["sonar.crosstalk"] = kind if now == "off" else "geometric+constant"
+            if kind == "geometric":
+                out["sonar.schedule"] = "simultaneous"
+        return out
+    return cal
+
+
+def _cal_beam(v: dict, cfg: Config) -> dict:
+    return {"sonar.beam": "cone", "sonar.beam_half_angle_deg": v["half_angle_deg"],
+            "sonar.beam_rays": cfg.sonar.beam_rays}
 
 
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
@@ -118,26 +242,31 @@ register(Effect(
     _crosstalk_geometric,
     doc="a sonar hears another copter's ping when the emitter is in its cone and points at it",
     initial=lambda b: {"probability": _geometric_probability(b)},
+    calibrate=_cal_crosstalk("geometric", "sonar.crosstalk_hear_probability"),
     expected_features=("neighbor_in_beam", "neighbor_distance", "hit_type")))
 register(Effect(
     "crosstalk_constant", ("ultrasonic",), (Param("probability", 0.0, 0.95),),
     _crosstalk_constant,
     doc="a constant fraction of readings is halved (the report's 68 % rule)",
     initial=lambda b: {"probability": _constant_probability(b)},
+    calibrate=_cal_crosstalk("constant", "sonar.crosstalk_probability"),
     expected_features=("true_range",), catch_all=True))
 register(Effect(
     "sonar_rayleigh_scale", ("ultrasonic",), (Param("scale", 0.1, 10.0),),
     _rayleigh_scale,
     doc="the sonar noise scale sigma is off by a factor",
+    calibrate=_cal_rayleigh_scale,
     initial=lambda b: {"scale": 1.0}, catch_all=True))
 register(Effect(
     "sonar_bias", ("ultrasonic",), (Param("bias", -0.5, 0.5, unit="m"),),
     lambda b, v: b.with_sonar(bias=b.sonar.bias + v["bias"]),
-    doc="a constant offset on every echo", initial=lambda b: {"bias": 0.0}, catch_all=True))
+    doc="a constant offset on every echo", initial=lambda b: {"bias": 0.0}, catch_all=True,
+    calibrate=lambda v, cfg: {"sonar.bias": cfg.sonar.bias + v["bias"]}))
 register(Effect(
     "beam_width", ("ultrasonic",), (Param("half_angle_deg", 0.0, 60.0, unit="deg"),),
     _beam,
     doc="the sonar reports the nearest echo inside a cone, not along one ray",
+    calibrate=_cal_beam,
     initial=lambda b: {"half_angle_deg": math.degrees(float(abs(b.sonar.ray_angles).max()))},
     expected_features=("neighbor_in_beam", "neighbor_distance", "hit_to_copter", "incidence", "true_range",
                        "hit_type")))
@@ -145,7 +274,8 @@ register(Effect(
     "sound_speed", ("ultrasonic",), (Param("factor", 0.8, 1.25),),
     lambda b, v: b.with_sonar(range_scale=b.sonar.range_scale * v["factor"]),
     doc="speed of sound differs from the assumed one (temperature): readings scale by a factor",
-    initial=lambda b: {"factor": 1.0}, expected_features=("true_range",)))
+    initial=lambda b: {"factor": 1.0}, expected_features=("true_range",),
+    calibrate=lambda v, cfg: {"sonar.range_scale": cfg.sonar.range_scale * v["factor"]}))
 register(Effect(
     "latency", ("ultrasonic", "ranging", "imu"),
     (Param("ultrasonic", -0.5, 1.0, unit="s"), Param("ranging", -0.5, 1.0, unit="s"),
@@ -171,12 +301,16 @@ register(Effect(
     "pose_noise", ("ultrasonic", "ranging", "imu"),
     (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
     lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
-    doc="tracking noise in the logged poses", catch_all=True))
+    doc="tracking noise in the logged poses", catch_all=True,
+    calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"]}))
 register(Effect(
     "imu_bias", ("imu",),
     (Param("acc_x", -1.0, 1.0, unit="m/s^2"), Param("acc_y", -1.0, 1.0, unit="m/s^2"),
      Param("gyro", -0.5, 0.5, unit="rad/s")),
-    lambda b, v: b.with_(acc_bias_x=b.acc_bias_x + v["acc_x"], acc_bias_y=b.acc_bias_y + v["acc_y"],
-                         gyro_bias=b.gyro_bias + v["gyro"]),
+    lambda b, v: b.with_(imu=b.imu._replace(acc_bias_x=b.imu.acc_bias_x + v["acc_x"],
+                                            acc_bias_y=b.imu.acc_bias_y + v["acc_y"],
+                                            gyro_bias=b.imu.gyro_bias + v["gyro"])),
     doc="constant accelerometer and gyro biases", initial=lambda b: {"acc_x": 0.0, "acc_y": 0.0, "gyro": 0.0},
+    calibrate=lambda v, cfg: {"imu.acc_bias": [cfg.imu.acc_bias[0] + v["acc_x"], cfg.imu.acc_bias[1] + v["acc_y"]],
+                              "imu.gyro_bias": cfg.imu.gyro_bias + v["gyro"]},
     separable=True))

@@ -26,6 +26,17 @@ def range_rate(values, dt):
     return np.gradient(values, dt, axis=0)
 
 
+def range_rate_at(values, f):
+    """d/dt along axis 0 of values (K, ...) at flight f's used samples: :func:`range_rate` with the common step when
+    the samples are evenly strided, else central differences over their times (a log whose slow radio links add
+    samples between the strided ones)."""
+    K = f.samples.size
+    steps = np.diff(f.samples)
+    if K < 3 or np.all(steps == steps[0]):
+        return range_rate(values, f.dt * max(1, int(np.median(steps))) if K > 1 else f.dt)
+    return np.gradient(values, f.t[f.samples], axis=0)
+
+
 
 def append_identity(cols, f, y, sel, sample_pos, copter, channel):
     """Append the identity columns of the selected readings y[sel] of flight f to ``cols``.

@@ -46,8 +46,8 @@ class ModelParams:
     effect widens a single-ray beam. latency_* s: readings describe the world that much earlier (negative:
     later, as after a clock offset that was too early); each flight applies it as whole log steps (:func:`lag_steps`). nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
     copter is near the line of sight. dropout_a, dropout_b 1/m: a ranging reading is missing with
-    probability sigmoid(a + b·distance) (a = −inf: never). acc_bias_x, acc_bias_y m/s², gyro_bias rad/s:
-    constant body-frame IMU biases.
+    probability sigmoid(a + b·distance) (a = −inf: never). Constant IMU biases are fields of the ``imu`` record
+    (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
     """
 
     sonar: SonarModel
@@ -67,9 +67,6 @@ class ModelParams:
     dropout_a: float = -math.inf
     dropout_b: float = 0.0
     latency_ranging: float = 0.0
-    acc_bias_x: float = 0.0
-    acc_bias_y: float = 0.0
-    gyro_bias: float = 0.0
     latency_imu: float = 0.0
 
     @classmethod
@@ -107,7 +104,7 @@ SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
     "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar"),
     "ranging": ("ranging", "nlos_bias", "nlos_width", "dropout_a", "dropout_b", "latency_ranging"),
-    "imu": ("imu", "acc_bias_x", "acc_bias_y", "gyro_bias", "latency_imu"),
+    "imu": ("imu", "latency_imu"),
 }
 assert {f.name for f in fields(ModelParams)} == set(SHARED_FIELDS).union(*SENSOR_FIELDS.values())
 

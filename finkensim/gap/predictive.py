@@ -18,7 +18,7 @@ from numba import njit, prange
 from ..config import Config
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
-from .features import append_identity, nearest_neighbor, range_rate, sonar_channel_names, speed, wall_distance
+from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
 from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 
 # --------------------------------------------------------------------------------------- tables
@@ -192,7 +192,7 @@ class SonarTable(Table):
             y[out[..., 7] < AMBIGUITY_SIGMAS] = np.nan
             nd = nearest_neighbor(f.pos[f.samples])  # (K, N)
             sp = speed(f)  # (K, N)
-            rr = range_rate(out[..., 0], f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
+            rr = range_rate_at(out[..., 0], f)
             kk, nn, ss = np.meshgrid(np.arange(K), np.arange(N), np.arange(S), indexing="ij")
             ok = np.isfinite(y)
             append_identity(cols, f, y, ok, kk, nn, ss)
@@ -259,13 +259,16 @@ class SonarTable(Table):
 
 
 def expected_ranging(f) -> np.ndarray:
-    """(T, N, N) bool: where flight f's log expected a ranging reading. An imported recording marks it in the extra
-    ``ranging_expected`` (a reading, a value or a lost one, was recorded there), so a NaN where the radio did not
-    sample is not a dropout; without the extra every entry is expected (a synchronous log)."""
+    """(T, N, N) bool: where flight f's log expected a ranging reading, so that a NaN there is a dropout and
+    elsewhere "no reading" (``spec/flightlog.md``: NaN = no reading). An imported recording marks it in the extra
+    ``ranging_expected`` (a reading, a value or a lost one, was recorded there); without the extra, every reading
+    and every sample of a pair read synchronously (:func:`~.replay.synchronous_pairs`, e.g. a simulated log), and nothing of a pair read at its
+    own slower rate: a NaN that nobody expected is never a dropout."""
     e = f.log.extras.get("ranging_expected") if f.log.extras else None
     shape = f.log.ranging.shape
     if e is None:
-        return np.ones(shape, dtype=bool)
+        r = np.asarray(f.log.ranging)
+        return rp.synchronous_pairs(r)[None] | np.isfinite(r)
     e = np.asarray(e)
     if e.shape != shape or e.dtype != np.bool_:
         raise rp.GapInputError(f"{f.name}: extra array ranging_expected has shape {e.shape} and dtype {e.dtype}; "
@@ -287,7 +290,8 @@ class RangingTable(Table):
             any_ = True
             K, N = f.samples.size, f.n_copters
             P = f.pos[f.samples]
-            d = np.sqrt(((P[:, :, None, :] - P[:, None, :, :]) ** 2).sum(-1))
+            dz = f.z[f.samples][:, :, None] - f.z[f.samples][:, None, :]
+            d = np.sqrt(((P[:, :, None, :] - P[:, None, :, :]) ** 2).sum(-1) + dz * dz)
             clear = np.empty((K, N, N))
             rp.ranging_clearance(f.pos, f.samples, clear)
             y = f.log.ranging[f.samples]
@@ -296,7 +300,7 @@ class RangingTable(Table):
             miss = ~np.isfinite(y)
             sp = speed(f)
             tr = np.minimum(d, cfg.ranging.max_range)
-            rr = range_rate(tr, f.dt * max(1, int(np.median(np.diff(f.samples))) if K > 1 else 1))
+            rr = range_rate_at(tr, f)
             nd = nearest_neighbor(P)
             wd = wall_distance(P, f.arena)
             sel = off & expected_ranging(f)[f.samples]
@@ -330,7 +334,7 @@ class RangingTable(Table):
             times = np.clip(fl.samples[u] - lag_steps(p.latency_ranging, fl.dt), 0, fl.t.size - 1)
             N = fl.n_copters
             out = np.empty((times.size, N, N, G))
-            rp.ranging_draws(fl.pos, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
+            rp.ranging_draws(fl.pos, fl.z, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
             hit = self.cache.put(key, (out,))
         return hit
 
@@ -472,8 +476,8 @@ class ImuTable(Table):
         ch = self.channel[rows]
         ws = self.window_s[rows]
         # bias: body-frame accelerometer bias rotated into each window's world-frame integral
-        bias = self.bias_gain[rows, 0] * p.acc_bias_x + self.bias_gain[rows, 1] * p.acc_bias_y
-        bias = np.where(ch == 2, p.gyro_bias * ws, bias)
+        bias = self.bias_gain[rows, 0] * p.imu.acc_bias_x + self.bias_gain[rows, 1] * p.imu.acc_bias_y
+        bias = np.where(ch == 2, p.imu.gyro_bias * ws, bias)
         # white-noise density (unit·√s): the log's own sample period sets each sample's std, not the config's dt
         density = np.where(ch == 2, p.imu.gyro_sigma, p.imu.acc_sigma) * np.sqrt(p.imu.dt)
         acc_walk, gyro_walk = p.walk_density()

@@ -21,18 +21,19 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..arena import Arena, walls_step_env
+from ..arena import Arena
 from ..config import Config
-from ..flightlog import FlightLog
+from ..flightlog import FlightLog, heights
 from ..flightlog.messages import plural
-from ..kernels.geometry import nearest_body_distance_env, point_segment_distance
+from ..world import walls_from_positions
+from ..kernels.geometry import point_segment_distance
 from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ..kernels.trig import sin_fast
 from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
                                      sonar_poses_env, sonar_spread, store_ideal)
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
-from .pose_noise import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
+from ..sensors.tracking import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
 
 
 class GapInputError(ValueError):
@@ -43,7 +44,8 @@ class GapInputError(ValueError):
 class Flight:
     """One logged flight prepared for replay.
 
-    pos (T, N, 2) m, yaw (T, N) rad, yaw_unwrapped (T, N) rad, t (T,) s; theta_unit (T, S_p) rad:
+    pos (T, N, 2) m, yaw (T, N) rad, yaw_unwrapped (T, N) rad, t (T,) s; z (T, N) m heights (the log's ``z``
+    extra; zeros for a planar log, so ranging distances are horizontal there); theta_unit (T, S_p) rad:
     plate angles of bending walls (config wall parameters, bending on) driven by the logged
     copters; plate_distance (T, S_p) m: each plate's distance to the nearest logged copter body; samples (K,) indices of the time samples used (strided, skipping the first few so
     that finite differences have history).
@@ -67,6 +69,7 @@ class Flight:
     sonar_yaw: np.ndarray | None = None
     sonar_offset: float = 0.0
     extras: dict = field(default_factory=dict)
+    z: np.ndarray | None = None
 
     @property
     def n_copters(self) -> int:
@@ -100,24 +103,27 @@ class Flight:
         return PoseNoise(float(sigma_xy), float(sigma_yaw), int(seed), int(self.index))
 
 
-@njit(cache=True)
-def replay_walls(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
-    """Plate angles theta_out (T, S) rad of walls driven by logged positions pos (T, N, 2), as in a
-    simulation (sample k holds the plates after responding to the positions of samples 1 … k), and each
-    plate's distance to the nearest copter body dist_out (T, S) m."""
-    T = pos.shape[0]
-    S = seg_a.shape[0]
-    theta = np.zeros(S)
-    omega = np.zeros(S)
-    integ = np.zeros(S)
-    dist = np.empty(S)
-    for k in range(T):
-        nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
-        if k > 0:
-            walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
-        for s in range(S):
-            theta_out[k, s] = theta[s]
-            dist_out[k, s] = dist[s]
+def synchronous_pairs(ranging: np.ndarray) -> np.ndarray:
+    """(N, N) bool: the pairs of a ranging log (T, N, N) m read at every sample: the most common interval between
+    a pair's finite readings is one sample (random dropouts leave it so: P(1) = 1 − p is the largest for any p).
+    A pair read at its own slower rate (a radio link every 2.5 s in a 100 Hz log) is not. A pair with fewer than
+    two readings follows the majority of the other pairs (a pair that always dropped out in a synchronous log)."""
+    N = ranging.shape[1]
+    sync = np.zeros((N, N), dtype=bool)
+    known = np.zeros((N, N), dtype=bool)
+    for a in range(N):
+        for b in range(N):
+            if a == b:
+                continue
+            k = np.flatnonzero(np.isfinite(ranging[:, a, b]))
+            if k.size >= 2:
+                steps, counts = np.unique(np.diff(k), return_counts=True)
+                sync[a, b] = steps[np.argmax(counts)] == 1
+                known[a, b] = True
+    off = ~np.eye(N, dtype=bool)
+    majority = bool(sync[known].mean() >= 0.5) if known.any() else True
+    sync[off & ~known] = majority
+    return sync
 
 
 def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> list[Flight]:
@@ -140,7 +146,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         yaw = np.ascontiguousarray(log.pose[:, :, 2], dtype=float)
         theta = np.empty((t.size, arena.n_plates))
         plate_distance = np.empty((t.size, arena.n_plates))
-        replay_walls(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
+        walls_from_positions(pos, t, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, plate_distance)
         sx = cfg.gap.tracking_sigma_xy if cfg.gap.tracking_sigma_xy >= 0 else float(meta.get("tracking_sigma_xy", 0.0) or 0.0)
         sy = cfg.gap.tracking_sigma_yaw if cfg.gap.tracking_sigma_yaw >= 0 else float(meta.get("tracking_sigma_yaw", 0.0) or 0.0)
         first = 10  # history for finite differences and smoothing windows
@@ -148,9 +154,16 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
             raise GapInputError(f"{name}: the log has {plural(t.size, 'sample')}; expected more than {first + 1}")
         stride = max(1, int(np.ceil((t.size - first) / cfg.gap.max_samples_per_flight)))
         samples = np.arange(first, t.size, stride, dtype=np.int64)
+        if stride > 1 and log.ranging is not None:  # a pair read at its own slow rate keeps every reading
+            r = np.asarray(log.ranging)
+            slow = ~synchronous_pairs(r) & ~np.eye(r.shape[1], dtype=bool)
+            extra = np.flatnonzero(np.isfinite(r[:, slow]).any(axis=1)) if slow.any() else np.zeros(0, np.int64)
+            samples = np.union1d(samples, extra[extra >= first]).astype(np.int64)
+        z = heights(log)
+        z = np.zeros(pos.shape[:2]) if z is None else np.ascontiguousarray(z)
         f = Flight(name=name, index=i, log=log, t=t, dt=dt, pos=pos, yaw=yaw,
                    yaw_unwrapped=np.unwrap(yaw, axis=0), arena=arena, radius=radius, sigma_xy=sx, sigma_yaw=sy,
-                   theta_unit=theta, plate_distance=plate_distance, samples=samples)
+                   theta_unit=theta, plate_distance=plate_distance, samples=samples, z=z)
         if log.ultrasonic is not None:
             f.sonar_yaw = np.ascontiguousarray(log.ultrasonic_yaw, dtype=float)
             f.sonar_offset = float(log.ultrasonic_offset)
@@ -368,9 +381,10 @@ def _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw):
 # --------------------------------------------------------------------------------------- ranging
 
 @njit(cache=True, parallel=True)
-def ranging_draws(pos, yaw, times, noise, M, out):
-    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0). noise: :class:`PoseNoise`
-    (ranging has no direction: pass sigma_yaw = 0)."""
+def ranging_draws(pos, z, yaw, times, noise, M, out):
+    """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0), 3-D with the heights z (T, N) m
+    (zeros: horizontal distances, bit for bit). noise: :class:`PoseNoise` (ranging has no direction: pass
+    sigma_yaw = 0; heights are not perturbed)."""
     K = times.shape[0]
     N = pos.shape[1]
     for i in prange(K * M):
@@ -384,7 +398,8 @@ def ranging_draws(pos, yaw, times, noise, M, out):
             for b in range(a + 1, N):
                 dx = P[a, 0] - P[b, 0]
                 dy = P[a, 1] - P[b, 1]
-                d = np.sqrt(dx * dx + dy * dy)
+                dz = z[k, a] - z[k, b]
+                d = np.sqrt(dx * dx + dy * dy + dz * dz)
                 out[ti, a, b, m] = d
                 out[ti, b, a, m] = d
 

@@ -1,4 +1,4 @@
-"""The result of a diagnosis: :class:`GapReport` (the spec's fields, ``spec/gap-report.md``) with its
+"""The result of a diagnosis: :class:`GapReport` (the spec's fields, ``docs/formats/gap-report.md``) with its
 :class:`GapDetails` (what the Markdown report and the figures add for people).
 
 ``report.to_spec()`` is the JSON document of the spec, to the letter; ``report.write(out)`` writes it as
@@ -53,7 +53,14 @@ class GapDetails:
     reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
     score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None; targeted: when the omnibus
     test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.selection.run_diagnosis`),
-    {effect, sensors, improvement, ci, p, threshold, passed}, else None.
+    {effect, sensors, improvement, ci, p, threshold, passed}, else None; correction_skipped: sensor (or "all") →
+    why no correction was fitted although the verdict is unexplained; limit_notes: sensor → range limit taken from
+    the logs (:mod:`~finkensim.gap.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:
+    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.honesty`); residuals: per location
+    (same order), the median of reading − model median in the sensor's unit (m for ultrasonic and ranging);
+    at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.effects.at_bound`);
+    added_params: effect → its fitted parameters in the final selection (after any joint refit); config: the
+    diagnosed :class:`~finkensim.config.Config` (what :meth:`GapReport.calibrated_config` starts from).
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -81,17 +88,44 @@ class GapDetails:
     censoring: dict = field(default_factory=dict)
     correction: object = None
     targeted: dict | None = None
+    correction_skipped: dict = field(default_factory=dict)
+    limit_notes: dict = field(default_factory=dict)
+    sample_sizes: dict = field(default_factory=dict)
+    too_little_data: dict = field(default_factory=dict)
+    residuals: list = field(default_factory=list)
+    at_bound: dict = field(default_factory=dict)
+    added_params: dict = field(default_factory=dict)
+    config: object = None
 
 
 @dataclass
 class GapReport:
-    """A sim-to-real gap report: the spec's fields (``spec/gap-report.md``) and :class:`GapDetails`.
+    """A sim-to-real gap report: the spec's fields (``docs/formats/gap-report.md``) and :class:`GapDetails`.
 
-    flights: {"train": [...], "heldout": [...]}; score: the score's name; gap_before: mean held-out gap of
-    the configured model; locations: ranked bins ({sensor, channel, feature, low, high, gap, ci, n});
-    effects: every candidate's fit ({name, params, score_heldout, gap_after_train, gap_after_heldout,
-    shrink_heldout}); verdict: {effect, effects, ambiguous, shrink_heldout, unexplained, significant_gap};
-    correction: {sensor, features, shrink_heldout, method} when the gap is unexplained, else None.
+    ``report["verdict"]`` reads a spec field as in the JSON document; :meth:`to_spec` is that document.
+    Gaps and scores are mean values per reading on the held-out flights (lower is better).
+
+    Parameters
+    ----------
+    flights : dict
+        ``{"train": [names], "heldout": [names]}``.
+    score : str
+        The discrepancy score's name (``"crps"``).
+    gap_before : float
+        Mean held-out gap of the configured model.
+    locations : list of dict
+        Ranked bins ``{sensor, channel, feature, low, high, gap, ci, n, significant}``, largest gap first.
+    effects : list of dict
+        Every candidate's fit ``{name, params, score_heldout, gap_after_train, gap_after_heldout,
+        shrink_heldout}``, best held-out score first.
+    verdict : dict
+        ``{effect, effects, ambiguous, shrink_heldout, unexplained, significant_gap}``.
+    correction : dict or None
+        ``{sensor, features, shrink_heldout, method}`` when the gap is unexplained, else None.
+    details : GapDetails
+        Everything else the diagnosis measured (not part of the JSON document).
+    format : str
+        ``"finkensim-gap-report/1"``.
     """
 
     flights: dict
@@ -111,15 +145,53 @@ class GapReport:
         return getattr(self, key)
 
     def to_spec(self) -> dict:
-        """The JSON document of ``spec/gap-report.md``: exactly its keys, JSON-safe (non-finite → null)."""
+        """The JSON document of ``docs/formats/gap-report.md``: exactly its keys, JSON-safe (non-finite → null).
+
+        Returns
+        -------
+        dict
+            The document (``correction`` only when there is one).
+        """
         return json_safe({k: getattr(self, k) for k in SPEC_KEYS if k != "correction" or self.correction is not None})
 
     def to_json(self) -> str:
-        """:meth:`to_spec` as JSON text (strict: no NaN)."""
+        """:meth:`to_spec` as JSON text (strict: no NaN).
+
+        Returns
+        -------
+        str
+            The JSON text, ending with a newline.
+        """
         return json.dumps(self.to_spec(), indent=1, allow_nan=False) + "\n"
 
+    def calibrated_config(self):
+        """The diagnosed config plus every selected effect the simulator can fly, at its fitted parameters (a
+        :class:`~finkensim.config.Config`; :func:`finkensim.gap.calibrate.calibration` says which effects are not
+        flown yet)."""
+        from .calibrate import calibrated_config
+
+        return calibrated_config(self)
+
     def write(self, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
-        """Write report.json, report.md and the figures into directory ``out``; returns the written paths."""
+        """Write report.json, report.md, the figures and, when the diagnosed config is known, calibrated.toml
+        (:mod:`finkensim.gap.calibrate`) into directory ``out``.
+
+        Parameters
+        ----------
+        out : str or Path
+            The directory (created if missing).
+        max_locations_md : int
+            How many locations report.md lists (report.json has them all).
+
+        Returns
+        -------
+        dict of str to Path
+            Every file written, by kind.
+        """
+        from .calibrate import write_calibrated
         from .report import write_report
 
-        return write_report(self, out, max_locations_md)
+        paths = write_report(self, out, max_locations_md)
+        if self.details.config is not None:
+            paths["calibrated"] = write_calibrated(self, Path(out) / "calibrated.toml")
+        return paths

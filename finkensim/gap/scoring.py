@@ -1,10 +1,10 @@
 """Proper scoring rules for predictive distributions given as ensembles of draws.
 
-For a predictive distribution F with draws X, X' ~ F and an observation y,
+For a predictive distribution F with draws X, X' ~ F and an observation y::
 
     CRPS(F, y) = E|X − y| − ½ E|X − X'|                     (Gneiting & Raftery 2007, eq. 21)
 
-If y itself came from F, E_y[CRPS(F, y)] = ½ E|X − X'|. The per-reading *gap*
+If y itself came from F, E_y[CRPS(F, y)] = ½ E|X − X'|. The per-reading *gap*::
 
     gap(F, y) = CRPS(F, y) − ½ E|X − X'| = E|X − y| − E|X − X'|
 

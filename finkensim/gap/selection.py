@@ -1,5 +1,5 @@
 """Which effect explains the gap, and the verdict: greedy forward selection over the fitted catalogue
-and the report (``spec/gap-report.md``).
+and the report (``docs/formats/gap-report.md``).
 
 Every candidate effect is fitted on the training flights and scored on the held-out ones; the best is
 added while it removes a significant share (``gap.accept_gain``) of the configured model's held-out gap — or, after
@@ -16,16 +16,16 @@ import time
 
 import numpy as np
 
-from ..config import Config
 from . import effects as fx
 from .correction import fit_correction
 from .diagnose import Diagnosis, FitResult
 from .fits import joint_fit
+from .honesty import check_plausible, flag_bounds, sample_sizes, too_little_data
 from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .shrink import ShrinkMeter
 
-__all__ = ["run_diagnosis", "diagnose"]
+__all__ = ["run_diagnosis"]
 
 
 def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_top: int = 4,
@@ -53,8 +53,10 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     # significance per sensor (Bonferroni over sensors): a gap in one sensor is not diluted by the
     # noise of the others
     per_sensor = _sensor_gaps(diag, gap_vals, rows_ho, list(gap_vals), len(gap_vals), cfg)
+    check_plausible(per_sensor)
     gap_sensors = [s for s, v in per_sensor.items() if v["significant"]]
     significant = bool(gap_sensors)
+    sizes = sample_sizes(diag, rows_ho)
 
     diag.say("locating the gap")
     locs = diag.locations(base)
@@ -219,6 +221,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
                 "gap_after_train": r.gap_train, "gap_after_heldout": meter.gap_after(r.rows_score, r.rows_gap),
                 "shrink_heldout": meter.shrink(r.rows_score, r.rows_gap)} for r in first]
+    bounds = flag_bounds(effects, base)
     total_shrink = meter.shrink(cur_scores, cur_gaps) if significant else 0.0
     names_added = [r.name for r in added]
     verdict = {"effect": None, "effects": [], "ambiguous": [], "shrink_heldout": 0.0, "unexplained": False,
@@ -232,13 +235,17 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
     elif significant:
         verdict.update(effect=names_added[0], effects=names_added, ambiguous=ambiguous, shrink_heldout=total_shrink)
-    correction, correction_block = None, None
+    little = too_little_data(sizes, {s: s in gap_sensors for s in sizes})
+    correction, correction_block, correction_skipped = None, None, {}
+    if verdict["unexplained"] and not with_correction:
+        correction_skipped["all"] = "not asked for"
     if verdict["unexplained"] and with_correction:
         located = {}
         for loc in locs:
             if loc["_significant"] and loc["feature"] not in located.setdefault(loc["sensor"], []):
                 located[loc["sensor"]].append(loc["feature"])
-        correction = fit_correction(diag, current, sorted(gap_sensors, key=lambda s: -per_sensor[s]["gap"]), located)
+        correction = fit_correction(diag, current, sorted(gap_sensors, key=lambda s: -per_sensor[s]["gap"]), located,
+                                    why=correction_skipped)
     if correction is not None:
         # measured against everything, itself included: a flexible regression is sharper than any physical
         # model with approximate parts, which is not a defect of the catalogue's effects
@@ -258,7 +265,10 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         catch_all=[r.name for r in first if fx.REGISTRY[r.name].catch_all], tie_tolerance=cfg.tie_tolerance,
         unexplained_shrink=cfg.unexplained_shrink, remaining=remaining, calibration_gap=calibration_gap, calibration_ci=list(gap_ci),
         best_score=meter.s_min,
-        censoring={s: c.to_dict() for s, c in diag.censoring.items()}, correction=correction, targeted=targeted)
+        censoring={s: c.to_dict() for s, c in diag.censoring.items()}, correction=correction, targeted=targeted,
+        correction_skipped=correction_skipped, limit_notes=dict(getattr(diag, "limit_notes", {})), sample_sizes=sizes,
+        too_little_data=little, at_bound=bounds, residuals=[loc["_residual"] for loc in locs],
+        added_params={r.name: _clean(r.values) for r in added}, config=diag.cfg)
     locations = [{**{k: v for k, v in loc.items() if not k.startswith("_")},
                   "significant": bool(loc["_significant"] and significant)} for loc in locs]
     return GapReport(flights={"train": diag.train_names, "heldout": diag.heldout_names}, score="crps_gap_normalised",
@@ -450,17 +460,3 @@ def _best_joint_pair(diag, first_added, others, evaluated):
 
 def _clean(values: dict) -> dict:
     return {k: (int(v) if isinstance(v, (int, np.integer)) else float(v)) for k, v in values.items()}
-
-
-def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None, effect_names=None) -> GapReport:
-    """Diagnose the sim-to-real gap of flight logs against the simulator configured by ``cfg``.
-
-    logs: :class:`~finkensim.flightlog.FlightLog` list; names: one name per log (file names);
-    cfg: the simulator's config (default: the defaults); heldout: names of the held-out flights (default:
-    the last; a single flight is split in halves); progress: callable taking a message, or None;
-    effect_names: the candidate effects (default ``cfg.gap.effects``, else the whole catalogue).
-    Returns a :class:`~finkensim.gap.result.GapReport` (``.to_spec()``, ``.write(out)``).
-    """
-    cfg = Config() if cfg is None else cfg
-    diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress)
-    return run_diagnosis(diag, effect_names)

@@ -193,6 +193,7 @@ CASES: dict[str, Case] = {
     "foreign_multipath": Case("foreign_multipath", None, lambda r: (
         {}, _post_sonar_multipath(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ultrasonic"),
 }
+"""Every ``gap-validate`` case by name: ``null``, each catalogued effect, the foreign controls."""
 
 
 def base_config(updates: dict | None = None) -> Config:

@@ -1,4 +1,4 @@
-"""Import asynchronous arena recordings (CSV, ROS 1/ROS 2 bags, MCAP) into ``spec/flightlog.md`` flights.
+"""Import asynchronous arena recordings (CSV, ROS 1/ROS 2 bags, MCAP) into ``docs/formats/flightlog.md`` flights.
 
     from finkensim.importing import read_csv, build_flight
     rec = read_csv("track.csv", "read.csv")              # a Recording: long-form tables, nothing resampled

@@ -1,7 +1,7 @@
 """Align an asynchronous recording on one time base and build its flight log.
 
 :func:`build_flight` turns a :class:`~.recording.Recording` (every copter tracked at its own times, every sensor
-reading at its own time, possibly on another clock) into one ``spec/flightlog.md`` flight:
+reading at its own time, possibly on another clock) into one ``docs/formats/flightlog.md`` flight:
 
 1. **Check** the tables (:func:`~.recording.check_recording`) and the units against the arena.
 2. **Clock offset**: reading time on the tracking clock = reading time + offset; ``"auto"`` estimates it from the
@@ -107,22 +107,37 @@ def _num(x):
 
 
 def _units(ch, arena):
+    """Positions, heights and each sonar / ranging stream's readings judged against the arena: a value far beyond
+    it looks like centimetres or millimetres (a named error). Per stream, so one copter's ranging in millimetres
+    among others in metres is caught."""
     W, L = arena
     size = max(W, L)
-    for name, v in (("tracking x", ch.tr_x), ("tracking y", ch.tr_y)):
+    coords = [("tracking x", ch.tr_x), ("tracking y", ch.tr_y)]
+    if ch.tr_z is not None:
+        coords.append(("tracking z", ch.tr_z))
+    for name, v in coords:
         top = float(np.max(np.abs(v)))
         if top > UNIT_FACTOR * size:
             unit = "millimetres" if top > 10 * UNIT_FACTOR * size else "centimetres"
             raise RecordingError(f"{name} reaches {fmt(top)} in a {fmt(W)} m x {fmt(L)} m arena; that looks like "
                                  f"{unit}: convert positions to metres")
     diag = math.hypot(W, L)
-    for kind in (KIND_ULTRASONIC, KIND_RANGING):
-        v = ch.rd_value[(ch.rd_kind == kind) & np.isfinite(ch.rd_value)]
-        if v.size and float(np.median(v)) > UNIT_FACTOR * diag:
-            med = float(np.median(v))
-            unit = "millimetres" if med > 10 * UNIT_FACTOR * diag else "centimetres"
-            raise RecordingError(f"{KIND_NAMES[kind]} readings have a median of {fmt(med)} in an arena "
-                                 f"{fmt(diag)} m across; that looks like {unit}: convert them to metres")
+    if ch.tr_z is not None:
+        diag = math.hypot(diag, float(np.max(np.abs(ch.tr_z))))
+    medians = {}
+    for s in np.unique(ch.rd_stream[np.isin(ch.rd_kind, (KIND_ULTRASONIC, KIND_RANGING))]):
+        v = ch.rd_value[(ch.rd_stream == s) & np.isfinite(ch.rd_value)]
+        if v.size:
+            medians[int(s)] = float(np.median(v))
+    fine = [m for m in medians.values() if m <= UNIT_FACTOR * diag]
+    for s, med in medians.items():
+        if med > UNIT_FACTOR * diag:
+            # beside streams in metres, the ratio to them tells mm from cm; alone, the ratio to the arena does
+            ratio, limit = (med / float(np.median(fine)), 300.0) if fine else (med / diag, 10 * UNIT_FACTOR)
+            unit = "millimetres" if ratio > limit else "centimetres"
+            raise RecordingError(f"readings: stream {ch.stream_names[s]!r} has a median of {fmt(med)} in an arena "
+                                 f"{fmt(diag)} m across" + (f" ({fmt(ratio)} times the other streams' median)" if fine
+                                                             else "") + f"; that looks like {unit}: convert them to metres")
 
 
 def build_flight(rec, arena, *, sonar_yaw=None, sonar_offset: float | None = None,
@@ -258,6 +273,9 @@ def build_flight(rec, arena, *, sonar_yaw=None, sonar_offset: float | None = Non
         imu = np.full((K, n_copters, 3), np.nan)
         imu[kk[m], cn[m], sl[m]] = ch.rd_value[m]
         log.imu_acc, log.imu_gyro = np.ascontiguousarray(imu[..., :2]), np.ascontiguousarray(imu[..., 2])
+    z = poses.heights(t)
+    if z is not None:
+        extras["z"] = z
     log.extras = extras
     meta = {"source": rec.source or "recording", "copter_radius": float(copter_radius)}
     if altitude is not None:

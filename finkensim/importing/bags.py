@@ -27,6 +27,7 @@ from .topics import TopicsSpec, parse_topics
 __all__ = ["read_bag", "write_bag", "BAG_KINDS"]
 
 BAG_KINDS = ("rosbag1", "rosbag2", "rosbag2-mcap", "mcap")
+"""Container kinds :func:`write_bag` writes: ROS 1 bag, ROS 2 bag (SQLite), ROS 2 bag in MCAP, plain MCAP."""
 _TRACKING_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/TransformStamped", "nav_msgs/msg/Odometry")
 _EXTRA = "reading bags needs the [import] extra: pip install 'finkensim[import]'"
 
@@ -65,11 +66,12 @@ def _field(msg, path: str, where: str):
 
 
 def _pose(msg, msgtype):
+    """(x, y, yaw, z) of a tracking message."""
     if msgtype == "geometry_msgs/msg/TransformStamped":
         tr = msg.transform
-        return tr.translation.x, tr.translation.y, _yaw(tr.rotation)
+        return tr.translation.x, tr.translation.y, _yaw(tr.rotation), tr.translation.z
     p = msg.pose.pose if msgtype == "nav_msgs/msg/Odometry" else msg.pose
-    return p.position.x, p.position.y, _yaw(p.orientation)
+    return p.position.x, p.position.y, _yaw(p.orientation), p.position.z
 
 
 class _Collector:
@@ -92,9 +94,11 @@ class _Collector:
         if e.role == "tracking":
             if msgtype not in _TRACKING_TYPES:
                 raise RecordingError(f"{where}: message type {msgtype}; expected one of {', '.join(_TRACKING_TYPES)}")
-            x, y, yaw = _pose(msg, msgtype)
+            x, y, yaw, z = _pose(msg, msgtype)
             for k, v in zip(TRACKING_COLUMNS, (ns, e.copter, x, y, yaw)):
                 self.track[k].append(v)
+            if e.height:
+                self.track["z"].append(z)
             return
         if e.role == "imu":
             if msgtype != "sensor_msgs/msg/Imu":
@@ -138,7 +142,10 @@ class _Collector:
             if len(df):
                 sorted_df = df.sort_values(key + ["t"], kind="stable")
                 out_of_order += int((sorted_df.index.to_numpy() != np.sort(sorted_df.index.to_numpy())).sum())
-        track = track.sort_values(["copter", "t"], kind="stable")[list(TRACKING_COLUMNS)].reset_index(drop=True)
+        if self.track.get("z"):
+            track["z"] = np.asarray(self.track["z"], dtype=np.float64)
+        columns = list(TRACKING_COLUMNS) + (["z"] if "z" in track.columns else [])
+        track = track.sort_values(["copter", "t"], kind="stable")[columns].reset_index(drop=True)
         read = read.sort_values(["copter", "channel", "t"], kind="stable")[list(READING_COLUMNS)].reset_index(drop=True)
         notes = {"topics_file": self.spec.source, "messages": dict(self.counts), "time_origin_ns": origin}
         notes.update({k: v for k, v in self.notes.items()})
@@ -241,12 +248,14 @@ def _messages(rec: Recording, ts, epoch_ns: int, ros1: bool):
 
     out, topics = [], defaultdict(list)
     tr = rec.tracking
+    with_z = "z" in tr.columns
     for c in dict.fromkeys(tr["copter"]):
         topic = f"/{c}/pose"
-        topics["tracking"].append({"topic": topic, "copter": c})
-    for t, c, x, y, yaw in tr[list(TRACKING_COLUMNS)].itertuples(index=False):
+        topics["tracking"].append({"topic": topic, "copter": c, **({"height": True} if with_z else {})})
+    zs = tr["z"].to_numpy(dtype=np.float64) if with_z else np.zeros(len(tr))
+    for (t, c, x, y, yaw), z in zip(tr[list(TRACKING_COLUMNS)].itertuples(index=False), zs):
         ns = nsec(t)
-        pose = T["geometry_msgs/msg/Pose"](position=Point(x=float(x), y=float(y), z=0.0),
+        pose = T["geometry_msgs/msg/Pose"](position=Point(x=float(x), y=float(y), z=float(z)),
                                            orientation=Quat(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)))
         out.append((ns, f"/{c}/pose", "geometry_msgs/msg/PoseStamped",
                     T["geometry_msgs/msg/PoseStamped"](header=header(ns), pose=pose)))
@@ -290,7 +299,8 @@ def _topics_toml(topics: dict) -> str:
     for role in ("tracking", "ultrasonic", "ranging", "imu"):
         for e in topics.get(role, []):
             lines.append(f"[[{role}]]")
-            lines += [f"{k} = {v!r}" if isinstance(v, int) else f'{k} = "{v}"' for k, v in e.items()]
+            lines += [f"{k} = {str(v).lower()}" if isinstance(v, bool) else f"{k} = {v!r}" if isinstance(v, int)
+                      else f'{k} = "{v}"' for k, v in e.items()]
             lines.append("")
     return "\n".join(lines)
 

@@ -1,4 +1,4 @@
-"""``finkensim import``: an arena recording (CSV pair, ROS 1 / ROS 2 bag, MCAP) into one flight log.
+"""``finkensim import``: an arena recording (CSV pair, ROS 1 / ROS 2 bag, MCAP) into one flight log::
 
     finkensim import --tracking TRACK.csv --readings READ.csv --arena 3,4 --sonar-yaw-deg 0,90,180,-90 \\
                      --sonar-offset 0.1 [--copter-radius M] [--altitude M] [--clock-offset auto|SECONDS] \\
@@ -33,11 +33,12 @@ def add_parser(sub) -> None:
         description="Read tracking and sensor readings recorded at their own rates (CSV pair, or a ROS 1 / ROS 2 "
                     "bag or MCAP file with a topics TOML), estimate or apply the offset between the sensors' clock "
                     "and the tracking clock, place every reading unchanged on a common time base, interpolate the "
-                    "poses to it, and write one flight log (spec/flightlog.md). The decisions are printed and kept "
-                    "in the log's meta['import'].",
+                    "poses to it, and write one flight log (docs/formats/flightlog.md). The decisions are printed and "
+                    "kept in the log's meta['import'].",
     )
     src = p.add_argument_group("input (a CSV pair or a bag)")
-    src.add_argument("--tracking", metavar="TRACK.csv", help="CSV with columns t, copter, x, y, yaw (s, name, m, m, rad)")
+    src.add_argument("--tracking", metavar="TRACK.csv", help="CSV with columns t, copter, x, y, yaw (s, name, m, m, rad) "
+                                                            "and optionally z (m, height: ranging is then 3-D)")
     src.add_argument("--readings", metavar="READ.csv",
                      help="CSV with columns t, copter, channel, value; channels ultrasonic/<i>, ranging/<copter>, "
                           "imu/acc_x, imu/acc_y, imu/gyro")

@@ -79,8 +79,8 @@ def _pick_rows(ch, kind, max_offset, span, rng):
 
 def _wall_angles(poses, arena, radius):
     """(times (G,), theta (G, S)): the plate angles of ``arena``'s walls driven by the tracked copters on a grid at
-    the tracking rate, as the gap diagnosis replays them (:func:`finkensim.gap.replay.replay_walls`)."""
-    from ..gap.replay import replay_walls
+    the tracking rate, as the gap diagnosis replays them (:func:`finkensim.world.walls_from_positions`)."""
+    from ..world import walls_from_positions
 
     t_lo, t_hi = poses.span
     rate = poses.rate if np.isfinite(poses.rate) and poses.rate > 0 else 100.0
@@ -88,7 +88,7 @@ def _wall_angles(poses, arena, radius):
     pos = np.ascontiguousarray(poses.all(times)[..., :2])
     theta = np.empty((times.size, arena.n_plates))
     dist = np.empty((times.size, arena.n_plates))
-    replay_walls(pos, times, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, dist)
+    walls_from_positions(pos, times, arena.seg_a, arena.seg_b, radius, arena.hinge, arena.lever, theta, dist)
     return times, theta
 
 

@@ -1,6 +1,6 @@
 """Read a recording from two long-form CSV files: tracking and readings.
 
-``TRACK.csv``: header ``t, copter, x, y, yaw`` (s, name, m, m, rad), one row per pose, each copter at its own
+``TRACK.csv``: header ``t, copter, x, y, yaw`` (s, name, m, m, rad) and optionally ``z`` (m, height), one row per pose, each copter at its own
 times. ``READ.csv``: header ``t, copter, channel, value`` (s, measuring copter, channel, value in the channel's
 unit; NaN or an empty cell = lost reading), channels as in :mod:`finkensim.importing.recording`. Rows may
 interleave copters and channels; within one copter (tracking) or one copter and channel (readings) they must be
@@ -12,7 +12,7 @@ import os
 from pathlib import Path
 
 from ..flightlog.csv import numeric_column, read_table
-from .recording import READING_COLUMNS, TRACKING_COLUMNS, Recording
+from .recording import OPTIONAL_TRACKING_COLUMNS, READING_COLUMNS, TRACKING_COLUMNS, Recording
 
 __all__ = ["read_csv"]
 
@@ -24,11 +24,11 @@ def read_csv(tracking: str | os.PathLike, readings: str | os.PathLike | None = N
 
     tp = Path(tracking)
     where = f"tracking CSV {str(tp)!r}"
-    df, lines = read_table(tp, TRACKING_COLUMNS, where)
+    df, lines = read_table(tp, TRACKING_COLUMNS, where, optional=OPTIONAL_TRACKING_COLUMNS)
     copter = df["copter"].str.strip().to_numpy()
     track = pd.DataFrame({"t": numeric_column(df, "t", lines, where, copter, "poses are not interpolated here"),
                           "copter": copter})
-    for c in ("x", "y", "yaw"):
+    for c in ("x", "y", "yaw") + tuple(c for c in OPTIONAL_TRACKING_COLUMNS if c in df.columns):
         track[c] = numeric_column(df, c, lines, where, copter, "remove rows without a pose")
     source = f"csv:{tp.name}"
     if readings is None:

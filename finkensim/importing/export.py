@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from .recording import READING_COLUMNS, TRACKING_COLUMNS, Recording, RecordingError
+from .recording import OPTIONAL_TRACKING_COLUMNS, READING_COLUMNS, TRACKING_COLUMNS, Recording, RecordingError
 
 __all__ = ["to_recording", "write_csv"]
 
@@ -93,8 +93,10 @@ def to_recording(flight, *, tracking_rate: float = 100.0, sonar_rate: float = 20
 
 
 def write_csv(rec: Recording, tracking_path: str | os.PathLike, readings_path: str | os.PathLike) -> None:
-    """Write a recording as the tracking and readings CSV files of :func:`~.csvtables.read_csv` (atomically)."""
+    """Write a recording as the tracking and readings CSV files of :func:`~.csvtables.read_csv` (atomically); the
+    tracking's optional ``z`` column (m) is written when the recording has it."""
     from ..atomic import write_atomic
 
-    write_atomic(tracking_path, lambda tmp: rec.tracking.to_csv(tmp, index=False, columns=list(TRACKING_COLUMNS)))
+    cols = list(TRACKING_COLUMNS) + [c for c in OPTIONAL_TRACKING_COLUMNS if c in rec.tracking.columns]
+    write_atomic(tracking_path, lambda tmp: rec.tracking.to_csv(tmp, index=False, columns=cols))
     write_atomic(readings_path, lambda tmp: rec.readings.to_csv(tmp, index=False, columns=list(READING_COLUMNS)))

@@ -23,13 +23,15 @@ class TrackedPoses:
     """Interpolated poses of a checked recording's tracking (:class:`~.recording.CheckedRecording`).
 
     Attributes: n_copters; span (t_lo, t_hi) s, the times at which every copter is tracked; rate (Hz), the median
-    tracking rate over copters; longest_gap (s), the longest interval between two poses of one copter.
+    tracking rate over copters; longest_gap (s), the longest interval between two poses of one copter; has_z: the
+    tracking has heights (:meth:`heights`).
     """
 
     def __init__(self, ch):
         self.n_copters = len(ch.copters)
         bounds = np.searchsorted(ch.tr_copter, np.arange(self.n_copters + 1))
-        self._t, self._x, self._y, self._yaw = [], [], [], []
+        self._t, self._x, self._y, self._yaw, self._z = [], [], [], [], []
+        self.has_z = getattr(ch, "tr_z", None) is not None
         gaps, rates = [], []
         for n in range(self.n_copters):
             a, b = bounds[n], bounds[n + 1]
@@ -38,6 +40,8 @@ class TrackedPoses:
             self._x.append(ch.tr_x[a:b])
             self._y.append(ch.tr_y[a:b])
             self._yaw.append(np.unwrap(ch.tr_yaw[a:b]))
+            if self.has_z:
+                self._z.append(ch.tr_z[a:b])
             d = np.diff(t)
             gaps.append(float(d.max()) if d.size else math.inf)
             rates.append(1.0 / float(np.median(d)) if d.size else math.nan)
@@ -54,6 +58,13 @@ class TrackedPoses:
         out[..., 1] = np.interp(times, self._t[n], self._y[n])
         out[..., 2] = wrap_angle(np.interp(times, self._t[n], self._yaw[n]))
         return out
+
+    def heights(self, times) -> np.ndarray | None:
+        """Heights (K, N) m of every copter at ``times`` (K,) s, interpolated linearly; None without a z column."""
+        if not self.has_z:
+            return None
+        times = np.asarray(times, dtype=np.float64)
+        return np.stack([np.interp(times, self._t[n], self._z[n]) for n in range(self.n_copters)], axis=1)
 
     def all(self, times) -> np.ndarray:
         """Poses of every copter at ``times`` (K,) s: (K, N, 3)."""

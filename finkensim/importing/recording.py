@@ -2,17 +2,17 @@
 
 A :class:`Recording` is what a CSV pair, a ROS 1 / ROS 2 bag or an MCAP file holds once its messages are
 mapped to finkensim's channels, before any alignment: every copter's tracking at its own times, every
-reading at its own time. :func:`finkensim.importing.build_flight` turns it into one ``spec/flightlog.md``
+reading at its own time. :func:`finkensim.importing.build_flight` turns it into one ``docs/formats/flightlog.md``
 flight on a common time base.
 
 Channels (column ``channel`` of :attr:`Recording.readings`):
 
-==========================  ======  ==========================================================
-``ultrasonic/<i>``          m       sonar ``i`` (index into the sonar yaw list), measured from the sonar
-``ranging/<copter name>``   m       virtual-ranging reading of the named other copter
-``imu/acc_x``, ``imu/acc_y`` m/s²   body-frame acceleration (x forward, y left)
-``imu/gyro``                rad/s   yaw rate
-==========================  ======  ==========================================================
+=============================  ======  ==========================================================
+``ultrasonic/<i>``             m       sonar ``i`` (index into the sonar yaw list), measured from the sonar
+``ranging/<copter name>``      m       virtual-ranging reading of the named other copter
+``imu/acc_x``, ``imu/acc_y``   m/s²    body-frame acceleration (x forward, y left)
+``imu/gyro``                   rad/s   yaw rate
+=============================  ======  ==========================================================
 
 :func:`check_recording` is the one place that checks a recording, whatever file it came from: every error is a
 :class:`RecordingError` naming the table, the column or channel, the value and what was expected.
@@ -29,19 +29,29 @@ from ..usertext import suggest
 from ..flightlog import FlightLogError
 from ..flightlog.messages import fmt
 
-__all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "Channel",
+__all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "OPTIONAL_TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "Channel",
            "parse_channel", "check_recording", "CheckedRecording"]
 
 #: columns of :attr:`Recording.tracking`: t (s), copter (name), x, y (m), yaw (rad)
 TRACKING_COLUMNS = ("t", "copter", "x", "y", "yaw")
+#: optional columns of :attr:`Recording.tracking`: z (m, height above the floor; ranging then uses 3-D distances)
+OPTIONAL_TRACKING_COLUMNS = ("z",)
 #: columns of :attr:`Recording.readings`: t (s), copter (name), channel (see module doc), value (channel's unit)
 READING_COLUMNS = ("t", "copter", "channel", "value")
 IMU_CHANNELS = ("imu/acc_x", "imu/acc_y", "imu/gyro")
 _CHANNEL_FORMS = ("ultrasonic/<i>", "ranging/<copter>") + IMU_CHANNELS
 
-#: the median interval between samples of one stream above which times look like milliseconds (s): tracking
-#: systems record at 50-500 Hz and sensors at 5-200 Hz, so 0.5 s between samples means a unit problem
-MS_INTERVAL = 0.5
+#: Times that look like milliseconds are judged per stream (one copter's tracking, one copter's channel), never
+#: over a whole file, so one copter in ms among others in s is caught and a slow stream is not mistaken for ms:
+#: a copter's tracking whose median interval is at least this (s) looks like ms (tracking systems record at
+#: 50-500 Hz; window means of 1 Hz are the slowest seen; 500 Hz in ms reads 2 s)
+TRACKING_MS_INTERVAL = 1.5
+#: a reading stream whose median interval is at least this (s) looks like ms: sensors record at 5-200 Hz (ms:
+#: 5-200 s), but a radio link on a shared channel may report only every 0.5-5 s (0.2-2 Hz), which is normal
+READING_MS_INTERVAL = 20.0
+#: a stream (tracking or readings) whose time span is more than this many times the copters' median tracking span
+#: looks like ms while the others are in s (the span does not depend on a clock offset)
+MS_SPAN_RATIO = 50.0
 
 
 class RecordingError(FlightLogError):
@@ -54,7 +64,8 @@ class Recording:
 
     Attributes:
         tracking: columns :data:`TRACKING_COLUMNS`; t float64 (s, tracking clock), copter str, x/y float64 (m,
-            arena frame), yaw float64 (rad, counter-clockwise from +x, any wrapping). Each copter at its own times.
+            arena frame), yaw float64 (rad, counter-clockwise from +x, any wrapping); optionally z float64 (m,
+            height). Each copter at its own times.
         readings: columns :data:`READING_COLUMNS`; t float64 (s, the sensors' clock, which may be offset from the
             tracking clock), copter str (the measuring copter), channel str, value float64. A lost reading may be
             absent or NaN.
@@ -104,7 +115,7 @@ class CheckedRecording:
     rd_copter (m,) int, rd_kind (m,) int (0 ultrasonic, 1 ranging, 2 imu), rd_slot (m,) int (sonar index, index
     of the other copter, or IMU axis), rd_t (m,) s, rd_value (m,) with NaN = lost; rd_stream (m,) int, one per
     (copter, channel); stream_names: the channel name of each stream as ``"copter:channel"``.
-    dropped: reason -> number of rows not used.
+    dropped: reason -> number of rows not used. tr_z (n,) m: the tracking's heights, None without a z column.
     """
 
     copters: list
@@ -121,6 +132,7 @@ class CheckedRecording:
     rd_stream: np.ndarray
     stream_names: list
     dropped: dict
+    tr_z: np.ndarray | None = None
 
 
 KIND_ULTRASONIC, KIND_RANGING, KIND_IMU = 0, 1, 2
@@ -181,15 +193,48 @@ def _increasing(stream, t, table, label, names, rows):
             "increasing time (sort them by time; remove duplicated samples)")
 
 
-def _check_times(stream, t, table, label, names, rows, rates):
-    """Strictly increasing times within each stream (:func:`_increasing`), and a median interval below
-    :data:`MS_INTERVAL` (else the times look like milliseconds; ``rates`` says what is usual)."""
+def _spans(stream, t, n_streams):
+    """(span (n_streams,), median interval (n_streams,)) per stream of rows grouped by stream; NaN interval for a
+    stream with one row."""
+    bounds = np.searchsorted(stream, np.arange(n_streams + 1))
+    span, step = np.zeros(n_streams), np.full(n_streams, math.nan)
+    for s in range(n_streams):
+        ts = t[bounds[s]:bounds[s + 1]]
+        if ts.size:
+            span[s] = ts[-1] - ts[0]
+        if ts.size > 1:
+            step[s] = float(np.median(np.diff(ts)))
+    return span, step
+
+
+def _check_times(stream, t, table, label, names, rows, rates, limit, reference_span=None):
+    """Strictly increasing times within each stream (:func:`_increasing`); per stream, a median interval below
+    ``limit`` s and a span at most :data:`MS_SPAN_RATIO` times ``reference_span`` (default: the median span of
+    these streams) (else that stream's times look like milliseconds; ``rates`` says what is usual). Returns the
+    spans (n_streams,) s."""
     _increasing(stream, t, table, label, names, rows)
-    d = np.diff(t)[stream[1:] == stream[:-1]]
-    step = float(np.median(d)) if d.size else math.nan
-    if step >= MS_INTERVAL:
-        raise RecordingError(f"{table}: the median interval between a {label}'s samples is {fmt(step)}; that looks "
-                             f"like milliseconds ({rates}): convert t to seconds")
+    span, step = _spans(stream, t, len(names))
+    slow = np.flatnonzero(step >= limit)
+    if slow.size:
+        s = int(slow[0])
+        raise RecordingError(f"{table}: the median interval between {label} {names[s]!r}'s samples is "
+                             f"{fmt(step[s])} s; that looks like milliseconds ({rates}): convert t to seconds"
+                             + (f" ({slow.size} of {len(names)} {label}s)" if len(names) > 1 else ""))
+    _check_spans(span, reference_span if reference_span is not None else float(np.median(span)), table, label, names)
+    return span
+
+
+def _check_spans(span, reference_span, table, label, names):
+    """Each stream's span at most :data:`MS_SPAN_RATIO` times ``reference_span`` s (else a named error)."""
+    if not reference_span > 0:
+        return
+    long = np.flatnonzero(span > MS_SPAN_RATIO * reference_span)
+    if long.size:
+        s = int(long[0])
+        raise RecordingError(f"{table}: {label} {names[s]!r} spans {fmt(span[s])} s, "
+                             f"{fmt(span[s] / reference_span)} times the copters' median tracking span "
+                             f"({fmt(reference_span)} s); that looks like milliseconds while the others are in "
+                             f"seconds: convert that {label}'s t to seconds")
 
 
 def check_recording(rec: Recording) -> CheckedRecording:
@@ -198,7 +243,8 @@ def check_recording(rec: Recording) -> CheckedRecording:
     Errors (:class:`RecordingError`): missing columns; non-numeric or non-finite times, positions, yaw (readings may
     be NaN = lost); empty names; unknown channels; a stream (copter, or copter and channel) whose times are not
     strictly increasing in the order given; a copter with readings but no tracking; ranging to an unknown copter;
-    times that look like milliseconds (median interval ≥ 0.5 s); yaw that looks like degrees. Positions and ranges
+    times that look like milliseconds (per stream: :data:`TRACKING_MS_INTERVAL`, :data:`READING_MS_INTERVAL`,
+    :data:`MS_SPAN_RATIO`); yaw that looks like degrees. Positions and ranges
     that look like centimetres or millimetres are judged against the arena in :func:`build_flight`.
     """
     tr, rd = rec.tracking, rec.readings
@@ -213,15 +259,19 @@ def check_recording(rec: Recording) -> CheckedRecording:
     order = np.argsort(ci, kind="stable")
     rows = np.arange(ci.size)[order]
     ci, t, x, y, yaw = ci[order], t[order], x[order], y[order], yaw[order]
-    _check_times(ci, t, "tracking", "copter", copters, rows, "tracking systems record at 50-500 Hz")
+    reference = float(np.median(_check_times(ci, t, "tracking", "copter", copters, rows,
+                                             "tracking systems record at 50-500 Hz", TRACKING_MS_INTERVAL)))
     _check_yaw(ci, t, yaw)
+    z = None
+    if "z" in tr.columns:
+        z = _floats(tr, "z", "tracking")[order]
 
     n = len(rd)
     dropped = {}
     if n == 0:
         empty_i, empty_f = np.zeros(0, dtype=np.int64), np.zeros(0)
         return CheckedRecording(copters, ci, t, x, y, yaw, empty_i, empty_i, empty_i, empty_f, empty_f, empty_i, [],
-                                dropped)
+                                dropped, tr_z=z)
     rcode, rnames = _names(rd, "copter", "readings")
     chi, names = _names(rd, "channel", "readings")
     rt = _floats(rd, "t", "readings")
@@ -246,7 +296,8 @@ def check_recording(rec: Recording) -> CheckedRecording:
     order = np.argsort(stream, kind="stable")
     rows = order.copy()
     stream, rt, val, rci, chi = stream[order], rt[order], val[order], rci[order], chi[order]
-    _check_times(stream, rt, "readings", "stream", stream_names, rows, "sensors record at 5-200 Hz")
+    _check_times(stream, rt, "readings", "stream", stream_names, rows, "sensors record at 5-200 Hz, radio links "
+                 "at 0.2-2 Hz", READING_MS_INTERVAL, reference)
     kinds = np.array([kind_of[nm] for nm in names], dtype=np.int64)[chi]
     slots = np.array([slot_of[nm] for nm in names], dtype=np.int64)[chi]
     self_range = (kinds == KIND_RANGING) & (slots == rci)
@@ -254,7 +305,8 @@ def check_recording(rec: Recording) -> CheckedRecording:
         i = int(np.argmax(self_range))
         raise RecordingError(f"readings: copter {copters[rci[i]]!r} has a ranging channel to itself at row {rows[i]}; "
                              "expected ranging/<another copter> (the diagonal of ranging is 0 by definition)")
-    return CheckedRecording(copters, ci, t, x, y, yaw, rci, kinds, slots, rt, val, stream, stream_names, dropped)
+    return CheckedRecording(copters, ci, t, x, y, yaw, rci, kinds, slots, rt, val, stream, stream_names, dropped,
+                            tr_z=z)
 
 
 def _check_yaw(ci, t, yaw):

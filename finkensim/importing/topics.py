@@ -7,6 +7,7 @@ A small TOML file, one array of tables per role::
     [[tracking]]                 # geometry_msgs/PoseStamped, TransformStamped or nav_msgs/Odometry
     topic = "/vicon/cf1/pose"
     copter = "cf1"
+    height = true                # optional: position.z is the copter's height (m; then on every tracking entry)
 
     [[ultrasonic]]               # sensor_msgs/Range (or any message with `field`)
     topic = "/cf1/sonar/front"
@@ -42,7 +43,7 @@ from .recording import RecordingError
 __all__ = ["TopicEntry", "TopicsSpec", "parse_topics", "ROLES"]
 
 ROLES = ("tracking", "ultrasonic", "ranging", "imu")
-_KEYS = {"tracking": {"topic", "copter", "time"}, "ultrasonic": {"topic", "copter", "index", "time", "field", "scale"},
+_KEYS = {"tracking": {"topic", "copter", "time", "height"}, "ultrasonic": {"topic", "copter", "index", "time", "field", "scale"},
          "ranging": {"topic", "copter", "other", "time", "field", "scale"}, "imu": {"topic", "copter", "time"}}
 _REQUIRED = {"tracking": ("topic", "copter"), "ultrasonic": ("topic", "copter", "index"),
              "ranging": ("topic", "copter", "other"), "imu": ("topic", "copter")}
@@ -51,7 +52,8 @@ _REQUIRED = {"tracking": ("topic", "copter"), "ultrasonic": ("topic", "copter", 
 @dataclass(frozen=True)
 class TopicEntry:
     """One mapped topic: role (tracking, ultrasonic, ranging, imu), topic, copter, index (ultrasonic), other
-    (ranging), time ("header" or "receive"), field (dotted path or ""), scale."""
+    (ranging), time ("header" or "receive"), field (dotted path or ""), scale; height (tracking: position.z is the
+    height in m)."""
 
     role: str
     topic: str
@@ -61,6 +63,7 @@ class TopicEntry:
     time: str = "header"
     field: str = ""
     scale: float = 1.0
+    height: bool = False
 
     @property
     def channels(self) -> tuple[str, ...]:
@@ -140,8 +143,12 @@ def parse_topics(source) -> TopicsSpec:
             scale = item.get("scale", 1.0)
             if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale == 0:
                 raise RecordingError(f"{where}: scale = {scale!r}: expected a finite non-zero number")
+            height = item.get("height", False)
+            if not isinstance(height, bool):
+                raise RecordingError(f"{where}: height = {height!r}: expected true or false")
             e = TopicEntry(role=role, topic=item["topic"], copter=item["copter"], index=index,
-                           other=item.get("other", ""), time=time, field=item.get("field", ""), scale=float(scale))
+                           other=item.get("other", ""), time=time, field=item.get("field", ""), scale=float(scale),
+                           height=height)
             if e.topic in seen_topics:
                 raise RecordingError(f"{where}: topic {e.topic!r} is already mapped by {seen_topics[e.topic]}; "
                                      "expected each topic once")
@@ -155,4 +162,8 @@ def parse_topics(source) -> TopicsSpec:
             entries.append(e)
     if not any(e.role == "tracking" for e in entries):
         raise RecordingError(f"{name}: no [[tracking]] entry; expected one per copter (the diagnosis needs poses)")
+    heights = {e.height for e in entries if e.role == "tracking"}
+    if len(heights) > 1:
+        raise RecordingError(f"{name}: height = true on some [[tracking]] entries but not on others; expected it on "
+                             "every tracking entry or on none (a height per copter, or planar tracking)")
     return TopicsSpec(entries=tuple(entries), source=name)

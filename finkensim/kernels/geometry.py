@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+from .twin import python_function
 
 INF = np.inf
 
@@ -129,7 +130,7 @@ def nearest_body_distance_env(seg_a, seg_b, pos_b, radius, out_row):
 
 
 # the brute force as a called function: the rare fallback of nearest_body_distance_within_env
-_nearest_body_distance_fn = njit(cache=True)(nearest_body_distance_env.py_func)
+_nearest_body_distance_fn = njit(cache=True)(python_function(nearest_body_distance_env))
 
 @njit(cache=True, inline="always")
 def _wall_line(seg_a, seg_b, s0, n, ci, sign):

@@ -14,7 +14,7 @@ import types
 
 from numba import njit
 
-__all__ = ["twin", "INTERNAL"]
+__all__ = ["twin", "python_function", "INTERNAL"]
 
 #: njit options of a function that only compiled code calls: no Python entry point and no C callback are generated.
 #: Each compiled function carries both wrappers by default (unboxing every field of its record arguments: for
@@ -23,6 +23,12 @@ INTERNAL = {"no_cpython_wrapper": True, "no_cfunc_wrapper": True}
 
 #: the options that change generated code: a twin takes its kernel's, so that both give identical results
 _CODE_OPTIONS = ("error_model", "fastmath", "boundscheck", "nogil")
+
+
+def python_function(kernel):
+    """The plain Python function behind a numba dispatcher (the function itself when ``NUMBA_DISABLE_JIT=1`` made
+    ``njit`` return it unchanged, as in a line-coverage run)."""
+    return getattr(kernel, "py_func", kernel)
 
 
 def twin(kernel):
@@ -37,6 +43,8 @@ def twin(kernel):
     0.68 can prune the reference counting of the arrays they hand to their inlined per-ray functions — an atomic
     increment and decrement of each, for every sonar reading, before.
     """
+    if not hasattr(kernel, "targetoptions"):  # NUMBA_DISABLE_JIT=1: nothing is compiled, the kernel is its own twin
+        return kernel
     opts = {k: v for k, v in kernel.targetoptions.items() if k in _CODE_OPTIONS}
     f = kernel.py_func
     g = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_twin", f.__defaults__, f.__closure__)

@@ -64,6 +64,8 @@ class ImuModel(NamedTuple):
     gyro_sigma: white-noise std of each gyro sample, rad/s (= gyro_noise_density / √dt).
     gyro_walk: std of one gyro bias increment, rad/s (= gyro_bias_walk · √dt).
     dt: sample period, s (the world step).
+    acc_bias_x, acc_bias_y: constant body-frame accelerometer bias, m/s²; gyro_bias: constant gyro bias, rad/s
+    (config ``imu.acc_bias``, ``imu.gyro_bias``; the gap effect ``imu_bias`` fits them). 0 changes nothing.
     """
 
     acc_sigma: float
@@ -71,6 +73,9 @@ class ImuModel(NamedTuple):
     gyro_sigma: float
     gyro_walk: float
     dt: float
+    acc_bias_x: float = 0.0
+    acc_bias_y: float = 0.0
+    gyro_bias: float = 0.0
 
     @classmethod
     def from_densities(cls, acc_noise_density: float, acc_bias_walk: float, gyro_noise_density: float,
@@ -90,8 +95,10 @@ class ImuModel(NamedTuple):
 
         ``imu.enabled`` is not part of the model: it tells the caller whether to produce IMU readings.
         """
-        return cls.from_densities(imu.acc_noise_density, imu.acc_bias_walk, imu.gyro_noise_density,
-                                  imu.gyro_bias_walk, dt)
+        model = cls.from_densities(imu.acc_noise_density, imu.acc_bias_walk, imu.gyro_noise_density,
+                                   imu.gyro_bias_walk, dt)
+        return model._replace(acc_bias_x=float(imu.acc_bias[0]), acc_bias_y=float(imu.acc_bias[1]),
+                              gyro_bias=float(imu.gyro_bias))
 
 
 class ImuState(NamedTuple):
@@ -139,6 +146,8 @@ def imu_env(acc_world, yaw, yaw_rate, bias, params, seed, env_id, step, out_acc,
 
     acc_world (N, 2) m/s² world frame; yaw, yaw_rate (N,); bias (N, 3) updated in place
     (b_k → b_{k+1}); writes out_acc (N, 2) m/s² body frame (x forward, y left) and out_gyro (N,) rad/s.
+    The constant biases of ``params`` add to the drifting ones (only when non-zero: adding 0 would turn a −0.0
+    reading into +0.0).
     """
     for n in range(acc_world.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_IMU)
@@ -146,9 +155,12 @@ def imu_env(acc_world, yaw, yaw_rate, bias, params, seed, env_id, step, out_acc,
         s = np.sin(yaw[n])
         ax = acc_world[n, 0]
         ay = acc_world[n, 1]
-        out_acc[n, 0] = (c * ax + s * ay) + bias[n, 0] + params.acc_sigma * normal(key, NOISE_INDEX)
-        out_acc[n, 1] = (-s * ax + c * ay) + bias[n, 1] + params.acc_sigma * normal(key, NOISE_INDEX + 1)
-        out_gyro[n] = yaw_rate[n] + bias[n, 2] + params.gyro_sigma * normal(key, NOISE_INDEX + 2)
+        bx = bias[n, 0] + params.acc_bias_x if params.acc_bias_x != 0.0 else bias[n, 0]
+        by = bias[n, 1] + params.acc_bias_y if params.acc_bias_y != 0.0 else bias[n, 1]
+        bg = bias[n, 2] + params.gyro_bias if params.gyro_bias != 0.0 else bias[n, 2]
+        out_acc[n, 0] = (c * ax + s * ay) + bx + params.acc_sigma * normal(key, NOISE_INDEX)
+        out_acc[n, 1] = (-s * ax + c * ay) + by + params.acc_sigma * normal(key, NOISE_INDEX + 1)
+        out_gyro[n] = yaw_rate[n] + bg + params.gyro_sigma * normal(key, NOISE_INDEX + 2)
         bias[n, 0] += params.acc_walk * normal(key, WALK_INDEX)
         bias[n, 1] += params.acc_walk * normal(key, WALK_INDEX + 1)
         bias[n, 2] += params.gyro_walk * normal(key, WALK_INDEX + 2)

@@ -53,13 +53,19 @@ class Mixture:
 
     Arrays, all of shape (K,):
 
-    ``weights``    prior weight of each component (≥ 0, sums to 1 within 1e-3)
-    ``mean``       mean of X of each component, m
-    ``covar``      variance of X of each component, m² (> 0)
-    ``cond_mean``  mean of Y of each component at X = ``mean`` (the component's Y mean), m
-    ``cond_covar`` variance of Y given X of each component, m² (> 0). For a diagonal covariance this
-                   is the Y variance; for a full one, cov_yy − cov_xy²/cov_xx.
-    ``slope``      dE[Y | X]/dX within each component: cov_xy/cov_xx (0 for diagonal covariances).
+    ``weights``
+        prior weight of each component (≥ 0, sums to 1 within 1e-3)
+    ``mean``
+        mean of X of each component, m
+    ``covar``
+        variance of X of each component, m² (> 0)
+    ``cond_mean``
+        mean of Y of each component at X = ``mean`` (the component's Y mean), m
+    ``cond_covar``
+        variance of Y given X of each component, m² (> 0). For a diagonal covariance this is the Y variance;
+        for a full one, cov_yy − cov_xy²/cov_xx.
+    ``slope``
+        dE[Y | X]/dX within each component: cov_xy/cov_xx (0 for diagonal covariances).
 
     Given X, component i has conditional law N(cond_meanᵢ + slopeᵢ·(X − meanᵢ), cond_covarᵢ) and
     conditional weight rᵢ(X) ∝ weightsᵢ·N(X; meanᵢ, covarᵢ). Instances are immutable (read-only

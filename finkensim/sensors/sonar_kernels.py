@@ -50,7 +50,7 @@ HEAR_COIN = 6
 def shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, gain, pa_out, pb_out):
     """Plate surfaces at flight height, each shifted along its inward normal by min(lever·gain·sin θ, lever).
 
-    theta_b (S,) rad plate angles; plate_a, plate_b, normal_ (S, 2) m (the hanging plates and their
+    theta_b (S,) rad plate angles; plate_a, plate_b, ``normal_`` (S, 2) m (the hanging plates and their
     inward normals); lever m (hinge height − altitude); gain: scale of the displacement (1 = the hinge
     model; the gap diagnosis fits other values). Writes pa_out, pb_out (S, 2) m. The sine is
     :func:`~finkensim.kernels.trig.sin_fast` (within 2·10⁻¹⁵ of libm's for |θ| ≤ π/2, where the hinge keeps the

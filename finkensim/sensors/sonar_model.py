@@ -35,7 +35,8 @@ ERROR_CODES = {"none": ERROR_NONE, "gaussian": ERROR_GAUSSIAN, "rayleigh": ERROR
 CROSSTALK_OFF = 0
 CROSSTALK_CONSTANT = 1
 CROSSTALK_GEOMETRIC = 2
-CROSSTALK_CODES = {"off": CROSSTALK_OFF, "constant": CROSSTALK_CONSTANT, "geometric": CROSSTALK_GEOMETRIC}
+CROSSTALK_CODES = {"off": CROSSTALK_OFF, "constant": CROSSTALK_CONSTANT, "geometric": CROSSTALK_GEOMETRIC,
+                   "geometric+constant": CROSSTALK_GEOMETRIC | CROSSTALK_CONSTANT}
 
 SCHEDULE_SIMULTANEOUS = 0
 SCHEDULE_ROUND_ROBIN = 1
@@ -71,9 +72,9 @@ class SonarModel(NamedTuple):
     enabled, down_enabled: whether the caller should produce horizontal / down readings (the
     functions here always compute).
 
-    Fields not set by the config (their defaults change nothing; the gap diagnosis fits them as
-    candidate effects): range_scale, the factor on every echo distance (speed of sound differs from
-    the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
+    Fields whose defaults change nothing and which the gap diagnosis fits as candidate effects (config keys
+    ``sonar.range_scale``, ``sonar.bias``, ``sonar.crosstalk_hear_probability``): range_scale, the factor on every
+    echo distance (speed of sound differs from the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
     converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
     """
@@ -140,7 +141,11 @@ class SonarModel(NamedTuple):
             altitude=float(altitude),
             enabled=bool(sc.enabled),
             down_enabled=bool(sc.down_enabled),
-        ).with_beam(h if sc.beam == "cone" else 0.0, sc.beam_rays)
+            range_scale=float(sc.range_scale),
+            bias=float(sc.bias),
+            crosstalk_hear_probability=float(sc.crosstalk_hear_probability),
+        ).with_beam((h if sc.beam_half_angle_deg < 0.0 else math.radians(sc.beam_half_angle_deg))
+                    if sc.beam == "cone" else 0.0, sc.beam_rays)
 
     @property
     def n_rays(self) -> int:

@@ -201,13 +201,17 @@ def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
     """Ideal horizontal sonar readings (no error, no cross-talk, not clamped to min_range).
 
     Args:
-        pos (B, N, 2) m copter centres; yaw (B, N) rad; theta (B, S) rad plate angles;
-        arena: :class:`~finkensim.arena.Arena` (or :class:`WallGeometry`); params: :class:`SonarModel`.
+        pos: (B, N, 2) copter centres, m.
+        yaw: (B, N) headings, rad.
+        theta: (B, S) plate hinge angles, rad.
+        arena: :class:`~finkensim.arena.Arena` (or :class:`WallGeometry`).
+        params: :class:`SonarModel`.
+
     Returns:
-        dist (B, N, 4) m: distance from each sonar to its nearest hit, max_range if none within range;
-        hit_type (B, N, 4) int64: 0 none (no echo within range), 1 wall (plate or net), 2 copter;
-        hit_xy (B, N, 4, 2) m: the nearest hit point (also when beyond range, where hit_type is 0).
-    Sonar order: front, left, back, right.
+        (dist, hit_type, hit_xy): dist (B, N, 4) m, the distance from each sonar to its nearest hit, max_range
+        if none within range; hit_type (B, N, 4) int64, 0 none (no echo within range), 1 wall (plate or net),
+        2 copter; hit_xy (B, N, 4, 2) m, the nearest hit point (also when beyond range, where hit_type is 0).
+        Sonar order: front, left, back, right.
     """
     sp = _check_model(params)
     g = wall_geometry(arena)
@@ -226,8 +230,9 @@ def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, e
                         return_ideal: bool = False):
     """Measured horizontal sonar readings of B environments at world step ``step``.
 
-    Args: as :func:`ideal_ultrasonic`, plus seed, env_ids (B,) global environment indices and step
+    Arguments as :func:`ideal_ultrasonic`, plus seed, env_ids (B,) global environment indices and step
     (``WorldState.step``), which key the random numbers.
+
     Returns:
         readings (B, N, 4) m in [min_range, max_range] (front, left, back, right); with
         ``return_ideal=True`` the tuple (readings, dist, hit_type, hit_xy) of :func:`ideal_ultrasonic`.

@@ -34,21 +34,39 @@ def needs_sensors(kind) -> bool:
 class SwarmSim:
     """A configured swarm: world, sensor models and behaviour, with compiled and per-step stepping.
 
-    Args:
-        cfg: a :class:`~finkensim.config.Config`, a TOML path/string, a dict, or None for defaults.
-        behaviour: None (``behaviour.kind`` from the config), one of ``"hover"``, ``"random_walk"``,
-            ``"attraction_repulsion"``, or a Python function ``f(readings, memory, params)`` (module doc).
-        params: the ``params`` passed to a Python behaviour (default ``cfg.behaviour``).
-        command_frame: ``"body"`` (default) or ``"world"``: the frame of a Python behaviour's velocity.
-        memory_factory: ``(n_envs, n_copters) -> object``, a Python behaviour's initial memory.
-        sensors: False runs no sensor at all (only for the open-loop ``"random_walk"`` and ``"hover"``,
-            which read none): faster when only the flight matters; the IMU bias and behaviour memory of
-            the state then stay as they are.
+    Parameters
+    ----------
+    cfg : Config, str, dict or None
+        A :class:`~finkensim.config.Config`, a TOML path or text, a dict, or None for the defaults.
+    behaviour : str, callable or None
+        None (``behaviour.kind`` from the config), one of ``"hover"``, ``"random_walk"``,
+        ``"attraction_repulsion"``, or a Python function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
+        with cmd_vel (B, N, 2) m/s and cmd_yaw_rate (B, N) rad/s or None (module doc).
+    params : object, optional
+        The ``params`` passed to a Python behaviour (default ``cfg.behaviour``).
+    command_frame : str
+        ``"body"`` (default) or ``"world"``: the frame of a Python behaviour's velocity commands.
+    memory_factory : callable, optional
+        ``(n_envs, n_copters) -> object``, a Python behaviour's initial memory.
+    sensors : bool
+        False runs no sensor at all (only for the open-loop ``"random_walk"`` and ``"hover"``, which read
+        none): faster when only the flight matters; the IMU bias and behaviour memory of the state then stay
+        as they are.
 
-    Attributes: ``world`` (:class:`~finkensim.world.World`), ``sonar`` (SonarModel), ``ranging``
-    (RangingModel), ``imu`` (ImuModel), ``attraction`` (AttractionParams), ``wall_check``
-    (WallCheckParams), ``random_walk`` (RandomWalkParams), ``beacons`` (M, 2) m, ``kind`` (str or the
-    function), ``enabled`` (sensor → bool).
+    Attributes
+    ----------
+    world : World
+        The physics (:class:`~finkensim.world.World`).
+    sonar, ranging, imu
+        The sensor records (``SonarModel``, ``RangingModel``, ``ImuModel``).
+    attraction, wall_check, random_walk
+        The behaviour records (``AttractionParams``, ``WallCheckParams``, ``RandomWalkParams``).
+    beacons : ndarray, shape (M, 2)
+        Fixed ranging beacons, m.
+    kind : str or callable
+        The behaviour.
+    enabled : dict
+        Sensor name → whether it runs.
     """
 
     def __init__(self, cfg: Config | str | dict | None = None, behaviour: str | Callable | None = None,
@@ -107,6 +125,7 @@ class SwarmSim:
 
     @property
     def n_copters(self) -> int:
+        """Copters per environment, N (``copters.n``)."""
         return self.cfg.copters.n
 
     def _rollout_parts(self, state, n_steps, record, python, label):
@@ -127,13 +146,32 @@ class SwarmSim:
         return state, concat_records(records)
 
     def recordable(self) -> tuple[str, ...]:
-        """Names :meth:`rollout` can record with this config (see :data:`RECORDABLE`)."""
+        """Names :meth:`rollout` can record with this config.
+
+        Returns
+        -------
+        tuple of str
+            The names of :data:`RECORDABLE` whose sensor is enabled.
+        """
         return tuple(name for name in RECORDABLE if name not in SENSOR_OF or self.enabled[SENSOR_OF[name]])
 
     def init(self, n_envs: int | None = None, seed: int | None = None, env_ids=None, positions=None, yaw=None,
              memory: Any = None) -> SwarmState:
-        """Initial state: :meth:`World.init <finkensim.world.World.init>` (same arguments), zero IMU bias,
-        empty behaviour memory (dead reckoning at 0, no flags), and a Python behaviour's ``memory``."""
+        """Initial state: the world's, zero IMU bias, empty behaviour memory (dead reckoning at 0, no flags).
+
+        Parameters
+        ----------
+        n_envs, seed, env_ids, positions, yaw
+            As :meth:`World.init <finkensim.world.World.init>`: number of environments B, random seed, global
+            environment indices (B,), copter centres (B, N, 2) m, headings (B, N) rad.
+        memory : object, optional
+            A Python behaviour's initial memory (default: ``memory_factory(B, N)``, or an empty dict).
+
+        Returns
+        -------
+        SwarmState
+            The state at step 0.
+        """
         ws = self.world.init(n_envs=n_envs, seed=seed, env_ids=env_ids, positions=positions, yaw=yaw)
         B, N = ws.n_envs, ws.n_copters
         if memory is None:
@@ -144,8 +182,22 @@ class SwarmSim:
     # -- one step through the batched functions (the reference path; also runs Python behaviours) --
 
     def sense(self, state: SwarmState) -> tuple[SensorReadings, np.ndarray, BehaviourState]:
-        """Sensor readings of ``state`` (its step), plus the advanced IMU bias and behaviour memory
-        (new arrays; ``state`` is unchanged)."""
+        """Sensor readings of ``state`` (at its step); ``state`` is unchanged.
+
+        Parameters
+        ----------
+        state : SwarmState
+            The current state.
+
+        Returns
+        -------
+        readings : SensorReadings
+            Every enabled sensor's readings (sonar (B, N, 4) m, ranging (B, N, R) m, IMU, wall flags).
+        imu_bias : ndarray, shape (B, N, 3)
+            The advanced IMU bias (new array).
+        behaviour : BehaviourState
+            The advanced behaviour memory (new arrays).
+        """
         return self._sense(state)[:3]
 
     def _sense(self, state: SwarmState):
@@ -176,7 +228,22 @@ class SwarmSim:
         return readings, bias, mem, ideal, hit
 
     def commands(self, state: SwarmState, readings: SensorReadings) -> tuple[np.ndarray, np.ndarray]:
-        """World-frame commands (cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) rad/s) of the behaviour."""
+        """The behaviour's commands for ``state`` given its readings.
+
+        Parameters
+        ----------
+        state : SwarmState
+            The current state.
+        readings : SensorReadings
+            The readings of ``state`` (from :meth:`sense`).
+
+        Returns
+        -------
+        cmd_vel : ndarray, shape (B, N, 2)
+            Velocity commands in the world frame, m/s.
+        cmd_yaw_rate : ndarray, shape (B, N)
+            Yaw-rate commands, rad/s.
+        """
         ws = state.world
         B, N = ws.n_envs, ws.n_copters
         if self.kind_code == KIND_ATTRACTION:
@@ -203,10 +270,24 @@ class SwarmSim:
         return v, w
 
     def step(self, state: SwarmState) -> tuple[SwarmState, SensorReadings, tuple[np.ndarray, np.ndarray]]:
-        """One closed-loop step through the batched functions: (new state, readings, (cmd_vel, cmd_yaw_rate)).
+        """One closed-loop step through the batched functions.
 
         Pure for the arrays (``state`` is left unchanged); a Python behaviour may mutate ``state.memory``,
         which the new state shares.
+
+        Parameters
+        ----------
+        state : SwarmState
+            The current state.
+
+        Returns
+        -------
+        new_state : SwarmState
+            The state one step later.
+        readings : SensorReadings
+            The readings the behaviour acted on.
+        commands : tuple of ndarray
+            ``(cmd_vel (B, N, 2) m/s, cmd_yaw_rate (B, N) rad/s)``, world frame.
         """
         return self._step(state)[:3]
 
@@ -238,12 +319,33 @@ class SwarmSim:
 
     def rollout(self, state: SwarmState, n_steps: int, record: bool | str | Iterable[str] = True,
                 python: bool = False, progress: bool | str = False) -> tuple[SwarmState, SwarmRecord]:
-        """Run ``n_steps`` closed-loop steps; returns (final state, :class:`SwarmRecord`). ``state`` is unchanged.
+        """Run ``n_steps`` closed-loop steps; ``state`` is unchanged.
 
-        ``record``: True (everything available), False (only the per-episode counters), or names from
-        :data:`RECORDABLE`. Built-in behaviours run in one compiled kernel; a Python behaviour (or
-        ``python=True``) loops over :meth:`step`. ``progress``: a progress bar on stderr (a string: its label);
-        the rollout then runs in about 100 consecutive parts, with results identical to one part.
+        Built-in behaviours run in one compiled kernel; a Python behaviour (or ``python=True``) loops over
+        :meth:`step`.
+
+        Parameters
+        ----------
+        state : SwarmState
+            The initial state (from :meth:`init`).
+        n_steps : int
+            Number of steps T (≥ 0).
+        record : bool, str or iterable of str
+            True (everything available), False (only the per-episode counters), or names from
+            :data:`RECORDABLE` (``"pose"``, ``"sonar"``, …).
+        python : bool
+            Loop over :meth:`step` in Python even for a built-in behaviour (the reference path).
+        progress : bool or str
+            A progress bar on stderr (a string: its label); the rollout then runs in about 100 consecutive
+            parts, with results identical to one part.
+
+        Returns
+        -------
+        final : SwarmState
+            The state after ``n_steps`` steps.
+        record : SwarmRecord
+            The recorded arrays, each shaped (T, B, N, ...) (e.g. ``pose`` (T, B, N, 3): x m, y m, yaw rad),
+            recorded before each step, and the per-episode counters.
         """
         if not isinstance(n_steps, (int, np.integer)) or isinstance(n_steps, bool) or n_steps < 0:
             raise ConfigError(f"n_steps = {n_steps!r}: expected a non-negative integer")

@@ -39,7 +39,13 @@ class Sweep:
             value (as the built config holds it).
         variants: factor → level name → {dotted key: canonical value} (empty when there are none).
         configs: the :class:`Config` of each combination.
-        replicates, seed, duration, metrics, design ("grid", "random" or "single"), source, text.
+        replicates: runs per combination.
+        seed: the sweep's random seed.
+        duration: episode length, s.
+        metrics: the metric names recorded.
+        design: ``"grid"``, ``"random"`` or ``"single"``.
+        source: where the design came from (a file name, or ``"sweep"``).
+        text: the design's TOML text, when it came from one.
     """
 
     def __init__(self, base: Config | str | Path | Mapping | None = None,

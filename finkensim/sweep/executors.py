@@ -16,6 +16,7 @@ from ..usertext import suggest
 from .checks import SweepError
 
 EXECUTORS = ("serial", "process", "dask")
+"""Names of the sweep executors: one process, a local process pool, a Dask cluster."""
 
 
 def check_executor(executor: str, scheduler: str | None) -> str:
@@ -45,6 +46,7 @@ def _limit_threads() -> None:
 
 
 PARENT_POLL_S = 0.5  # how often a worker checks that the sweep process is still there
+"""Seconds between a worker's checks that the sweep process still runs."""
 
 
 def die_with_parent(parent_pid: int) -> None:

@@ -21,26 +21,41 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
               runner: Callable[..., Mapping[str, float]] | None = None):
     """Run every run of ``sweep`` and return the results as a pandas DataFrame sorted by run id.
 
-    Args:
-        sweep: a :class:`Sweep`, a sweep TOML path or text, or the parsed tables.
-        out: output directory (see :mod:`finkensim.sweep`); None keeps the results in memory only.
-        executor: "process" (local process pool, the default), "serial" (in this process, for
-            debugging) or "dask" (a Dask cluster: ``scheduler`` address, or a LocalCluster).
-        workers: worker processes (default: all cores) for "process" and the Dask LocalCluster.
-        scheduler: address of a running Dask scheduler (``tcp://host:8786``); its workers need finkensim.
-        resume: run only the runs whose part is missing in ``out`` (same sweep only).
-        overwrite: start again in an ``out`` that holds results (otherwise that is an error).
-        progress: show a tqdm progress bar.
-        runner: ``f(cfg, seed, env_id) -> {metric: value}`` called instead of
-            :func:`~finkensim.episode.run_episode`; must be a picklable top-level function.
+    Parameters
+    ----------
+    sweep : Sweep, str, Path or Mapping
+        A :class:`Sweep`, a sweep TOML path or text, or the parsed tables.
+    out : str, Path or None
+        Output directory (see :mod:`finkensim.sweep`); None keeps the results in memory only.
+    executor : str
+        ``"process"`` (local process pool, the default), ``"serial"`` (in this process, for debugging) or
+        ``"dask"`` (a Dask cluster: ``scheduler`` address, or a LocalCluster).
+    workers : int, optional
+        Worker processes (default: all cores) for ``"process"`` and the Dask LocalCluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); its workers need finkensim.
+    resume : bool
+        Run only the runs whose part is missing in ``out`` (same sweep only).
+    overwrite : bool
+        Start again in an ``out`` that holds results (otherwise that is an error).
+    progress : bool
+        Show a tqdm progress bar.
+    runner : callable, optional
+        ``f(cfg, seed, env_id) -> {metric: value}`` called instead of :func:`~finkensim.episode.run_episode`;
+        must be a picklable top-level function.
 
-    Returns:
-        DataFrame with ``run_id, combination, <parameters>, replicate, seed, <metrics>, status,
-        error, elapsed``. ``df.attrs``: "ran" (run ids executed by this call), "failed" (run ids
-        with status "error"), "out" (the directory or None).
+    Returns
+    -------
+    pandas.DataFrame
+        One row per run: ``run_id, combination, <parameters>, replicate, seed, <metrics>, status, error,
+        elapsed`` (metrics in the units of :data:`~finkensim.metrics.METRICS`, elapsed in s). ``df.attrs``:
+        "ran" (run ids executed by this call), "failed" (run ids with status "error"), "out" (the directory
+        or None).
 
-    Raises:
-        SweepError: before any run starts, for a bad sweep, executor, worker count, scheduler or ``out``.
+    Raises
+    ------
+    SweepError
+        Before any run starts, for a bad sweep, executor, worker count, scheduler or ``out``.
     """
     if not isinstance(sweep, Sweep):
         sweep = Sweep.from_dict(sweep) if isinstance(sweep, Mapping) else Sweep.from_toml(sweep)

@@ -229,6 +229,7 @@ def plot_sensors(log, copter: int = 0, ax=None, *, max_points: int = 40000, titl
         the binned mean ± std and the ``ranging.max_range`` cut-off;
     (c) ``acc``: accelerometer body x (forward) of ``copter``, measured vs ideal (m/s²);
     (d) ``gyro``: yaw-rate gyro of ``copter``, measured vs ideal (rad/s);
+
     each IMU channel with a strip below showing the error measured − ideal and its 1 s running
     mean (which follows the bias random walk).
 

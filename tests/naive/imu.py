@@ -33,8 +33,9 @@ def _cell_normals(seed, env_ids, step, N, n):
 
 
 def imu_step_ref(acc_world, yaw, yaw_rate, bias, acc_density, acc_walk_density, gyro_density, gyro_walk_density,
-                 dt, seed, env_ids, step):
-    """One step from the continuous densities; returns (acc_meas, gyro_meas, new_bias) — bias not mutated."""
+                 dt, seed, env_ids, step, constant=(0.0, 0.0, 0.0)):
+    """One step from the continuous densities; returns (acc_meas, gyro_meas, new_bias) — bias not mutated.
+    constant: the constant biases (acc x, acc y m/s², gyro rad/s) added to every reading."""
     acc_world = np.asarray(acc_world, float)
     B, N, _ = acc_world.shape
     z = _cell_normals(seed, env_ids, step, N, 6)
@@ -42,7 +43,7 @@ def imu_step_ref(acc_world, yaw, yaw_rate, bias, acc_density, acc_walk_density, 
     walk = np.array([acc_walk_density, acc_walk_density, gyro_walk_density]) * np.sqrt(dt)
     acc_body, gyro = ideal_ref(acc_world, yaw, yaw_rate)
     ideal = np.concatenate([acc_body, gyro[..., None]], axis=-1)  # (B, N, 3)
-    meas = ideal + bias + sigma * z[..., 0:3]
+    meas = ideal + (bias + np.asarray(constant, float)) + sigma * z[..., 0:3]
     new_bias = bias + walk * z[..., 3:6]
     return meas[..., 0:2], meas[..., 2], new_bias
 

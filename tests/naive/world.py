@@ -1,7 +1,7 @@
 """Plain-NumPy reference of one world step (``finkensim.world.World.step``), for tests only.
 
 Vectorised over environments and copters, written from the model equations in
-``finkensim/copters.py`` and ``finkensim/arena.py`` (and README "The wall model"). Parameters are
+``finkensim/copters.py`` and ``finkensim/arena.py`` (and docs/user-guide/walls.md). Parameters are
 derived here from the :class:`~finkensim.config.Config` itself (degrees to radians, plate inertia,
 gravity torque, wall segments), so the kernels' parameter conversion is checked too.
 

@@ -1,14 +1,19 @@
-"""Pose draws of the gap replay: the logged pose plus tracking noise, keyed by (seed, flight, time index, copter,
-draw) so that every sensor sees the same realisation in draw m and refits reuse the same numbers (common random
-numbers). :func:`pose_normal_table` keeps a draw set's standard normals, which do not depend on σ, for the
-evaluations of a fit to share."""
+"""The tracking system (the arena's cameras) as a sensor: a tracked pose is the true pose plus Gaussian noise
+σ_xy (x, y) and σ_ψ (yaw), the one model of tracking noise.
+
+The flight-log writer uses it to record what a tracker would (:func:`tracked_poses`, config keys
+``log.tracking_sigma_xy`` / ``log.tracking_sigma_yaw``); the gap diagnosis uses the same kernel the other way round:
+its pose draws are the logged pose plus tracking noise, keyed by (seed, flight, time index, copter, draw) so that
+every sensor sees the same realisation in draw m and refits reuse the same numbers (common random numbers).
+:func:`pose_normal_table` keeps a draw set's standard normals, which do not depend on σ, for the evaluations of a
+fit to share."""
 from __future__ import annotations
 
 from typing import NamedTuple
 
 from numba import njit, prange
 
-from ..kernels.rng import STREAM_POSE_NOISE, counter_key, normal
+from ..kernels.rng import STREAM_POSE_NOISE, STREAM_TRACKING, counter_key, normal
 
 
 class PoseNoise(NamedTuple):
@@ -82,3 +87,17 @@ def draw_poses_from(pos, yaw, k, z, sigma_xy, sigma_yaw, pos_out, yaw_out):
         pos_out[n, 0] = x
         pos_out[n, 1] = y
         yaw_out[n] = w
+
+
+@njit(cache=True, parallel=True)
+def tracked_poses(pos, yaw, sigma_xy, sigma_yaw, seed, env_id, pos_out, yaw_out):
+    """What a tracker with noise σ_xy m, σ_ψ rad records of true poses pos (T, N, 2) m, yaw (T, N) rad →
+    pos_out, yaw_out (same shapes): :func:`noisy_pose` with the normals of draw 0 of the cell
+    ``counter_key(seed, env_id, sample, copter, STREAM_TRACKING)`` (independent of every sensor's numbers)."""
+    for k in prange(pos.shape[0]):
+        for n in range(pos.shape[1]):
+            zx, zy, zw = pose_normals(counter_key(seed, env_id, k, n, STREAM_TRACKING), 0)
+            x, y, w = noisy_pose(pos, yaw, k, n, sigma_xy, sigma_yaw, zx, zy, zw)
+            pos_out[k, n, 0] = x
+            pos_out[k, n, 1] = y
+            yaw_out[k, n] = w
