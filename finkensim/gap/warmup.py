@@ -10,7 +10,7 @@ WARMUP_SECONDS = 20.0  # s per simulated flight: longer than the IMU window of t
 
 
 def compile_diagnosis(cfg: Config) -> None:
-    """Diagnose two short flights of ``cfg`` (seeds 1 and 2, :data:`WARMUP_SECONDS` each, with the error-free values
+    """Diagnose two short flights of ``cfg`` (seeds 1 and 2, ``WARMUP_SECONDS`` each, with the error-free values
     a simulated log carries) against ``cfg`` itself: numba compiles (or loads) the replay, predictive, scoring and
     fit kernels a diagnosis of such logs calls. The report is discarded."""
     from .selection import diagnose
