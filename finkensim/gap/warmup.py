@@ -13,7 +13,7 @@ def compile_diagnosis(cfg: Config) -> None:
     """Diagnose two short flights of ``cfg`` (seeds 1 and 2, ``WARMUP_SECONDS`` each, with the error-free values
     a simulated log carries) against ``cfg`` itself: numba compiles (or loads) the replay, predictive, scoring and
     fit kernels a diagnosis of such logs calls. The report is discarded."""
-    from .selection import diagnose
+    from .pipeline import diagnose
 
     logs = [simulate_flight(cfg, duration=WARMUP_SECONDS, seed=seed, ideal=True)[0] for seed in (1, 2)]
     diagnose(logs, ["warmup-1.npz", "warmup-2.npz"], cfg)
