@@ -69,7 +69,7 @@ napoleon_custom_sections = [("Attributes", "params_style")]  # a field list: aut
 # to resolve.
 nitpicky = True
 _EXTERNAL = r"(numpy|np|numba|scipy|pandas|pd|pyarrow|matplotlib|plt|mpl|dask|distributed|gymnasium|gym|pettingzoo|" \
-            r"optuna|cma|sklearn|rosbags|mcap|PIL|tqdm|tomllib|tomli|pathlib|os|io|typing|collections|" \
+            r"optuna|cma|sklearn|rosbags|mcap|PIL|tqdm|hypothesis|tomlkit|tomllib|tomli|pathlib|os|io|typing|collections|" \
             r"concurrent|multiprocessing|dataclasses|enum|types|abc|json|re|datetime|argparse|subprocess|gc)"
 nitpick_ignore_regex = [
     (r"py:.*", r"(.*\.)?_\w+"),  # private helpers that a docstring names are not part of the reference

@@ -153,6 +153,12 @@ class SonarConfig(_Section):
     bias: float = _f(0.0, "m", -1.0, 1.0, doc="constant offset added to every echo (the gap effect sonar_bias fits it)")
     crosstalk_hear_probability: float = _f(1.0, "", 0.0, 1.0, doc="geometric cross-talk: probability that a "
                                            "receiver in cross-talk position hears the emitter (crosstalk_geometric)")
+    update_hz: float = _f(0.0, "Hz", 0.0, 1000.0,
+                          doc="horizontal-sonar measurements per second, each held until the next (sample-and-hold); 0 = a new "
+                              "measurement at every simulation step (the FINken's 2015 log shows no hold at its 36 Hz "
+                              "telemetry while airborne: docs/real-finken.md)")
+    update_phase: float = _f(0.0, "s", 0.0, 3600.0, doc="time of the first horizontal-sonar measurement after t = 0 "
+                             "with update_hz > 0 (the sonar_update_rate effect fits it)")
 
 
 @dataclass(frozen=True)
@@ -221,6 +227,7 @@ class LogConfig(_Section):
                                    "meta.tracking_sigma_yaw")
 
 
+#: Config section name → its dataclass (``register_section`` adds more).
 SECTIONS: dict[str, type] = {
     "arena": ArenaConfig,
     "walls": WallConfig,
@@ -234,6 +241,7 @@ SECTIONS: dict[str, type] = {
     "log": LogConfig,
 }
 
+#: Profile name → section → the values that differ from the defaults.
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "default": {},
     # The original V-REP report, as described (DESIGN.md): 40 kg plates saturate the hinge motor.

@@ -1,6 +1,10 @@
-"""Suite-wide checks."""
+"""Suite-wide checks, and the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md)."""
 import numba
 import pytest
+
+from finkensim.testing.profiles import load_profile
+
+load_profile()
 
 
 @pytest.fixture(autouse=True)

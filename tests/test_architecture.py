@@ -58,7 +58,7 @@ LAYERS = [
     ("flightlog", "metrics", "analysis", "default_scenario"),
     ("scenario", "episode", "checks", "viz", "precompile"),
     ("sweep", "gap", "checkfiles"),
-    ("envs", "tune", "importing", "datasets"),
+    ("envs", "tune", "importing", "datasets", "testing"),
     ("cli", "cliargs", "precompile_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from finkensim.testing import strategies as fst
 from finkensim.flightlog import (
     DEFAULT_SONAR_YAW,
     FORMAT,
@@ -179,26 +180,11 @@ def test_integer_arrays_are_accepted_as_numbers(tmp_path):
     assert back.arena.dtype == np.float64 and back.arena.tolist() == [3.0, 4.0]
 
 
-@st.composite
-def random_logs(draw):
-    T = draw(st.integers(1, 6))
-    N = draw(st.integers(1, 4))
-    S = draw(st.integers(1, 5))
-    flags = draw(st.tuples(st.booleans(), st.booleans(), st.booleans()))
-    seed = draw(st.integers(0, 2**32 - 1))
-    log = make_log(T, N, S, ultrasonic=flags[0], ranging=flags[1], imu=flags[2], seed=seed)
-    rng = np.random.default_rng(seed + 1)
-    nan_p = draw(st.sampled_from([0.0, 0.5, 1.0]))
-    if log.ultrasonic is not None:
-        log.ultrasonic[rng.random(log.ultrasonic.shape) < nan_p] = np.nan
-    if log.ranging is not None:
-        mask = (rng.random(log.ranging.shape) < nan_p) & ~np.eye(N, dtype=bool)
-        log.ranging[mask] = np.nan
-    if log.imu_acc is not None:
-        log.imu_gyro[rng.random(log.imu_gyro.shape) < nan_p] = np.nan
-    if draw(st.booleans()):
-        log.extras["noise"] = rng.normal(size=draw(st.integers(0, 3)))
-    return log
+def random_logs():
+    """Valid logs of 1-6 samples, 1-4 copters, 1-5 sonars, any blocks and NaN patterns (all missing included),
+    in finkensim's own or imported conventions (extras, unwrapped yaw, any clock): the public strategy."""
+    return st.booleans().flatmap(lambda imported: fst.flight_logs(n_steps=(1, 6), n_copters=(1, 4), n_sonars=(1, 5),
+                                                                  conventions=imported))
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -26,6 +26,7 @@ from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
 from finkensim.config import SECTIONS, ConfigError, config_from_dict
+from finkensim.testing.strategies import toml_value as _toml_value
 
 COUNTS: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # category -> [tried, named]
 FUZZ = settings(deadline=None, derandomize=True, database=None, print_blob=False,
@@ -64,22 +65,6 @@ def _expect_named(category: str, args, files: dict[str, bytes], names) -> None:
 # ------------------------------------------------------------------------------------------
 # TOML text
 # ------------------------------------------------------------------------------------------
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{json.dumps(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(v)
-
 
 FIELDS = [(sec, f.name) for sec, cls in SECTIONS.items() for f in dataclasses.fields(cls)]
 VALUES = st.one_of(

@@ -21,6 +21,7 @@ from finkensim.sensors.ultrasonic import (
     ideal_ultrasonic, plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
 )
 from finkensim.behaviours.open_loop import RandomWalk
+from finkensim.testing import strategies as fst
 from finkensim.world import World
 from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
 from tests.stats import assert_mean_within_se, assert_proportion_within_se, assert_std_within_se, se_std_normal
@@ -112,18 +113,11 @@ def test_gap_between_plates_hits_net():
     assert dist[0, 0, 0] == pytest.approx(2.0, abs=1e-12) and kind[0, 0, 0] == HIT_WALL
 
 
-def _scene(draw, n, W=3.0, L=4.0, r=0.15):
-    xs = draw(st.lists(st.floats(r, W - r), min_size=n, max_size=n))
-    ys = draw(st.lists(st.floats(r, L - r), min_size=n, max_size=n))
-    yaws = draw(st.lists(st.floats(-math.pi, math.pi), min_size=n, max_size=n))
-    return np.stack([xs, ys], -1)[None], np.array(yaws)[None]
-
-
-@st.composite
-def scenes(draw, n=3):
-    pos, yaw = _scene(draw, n)
-    thetas = draw(st.lists(st.floats(-0.6, 0.9), min_size=64, max_size=64))
-    return pos, yaw, np.array(thetas)[None]
+def scenes(n=3):
+    """(pos (1, n, 2), yaw (1, n), theta (1, S)) of a default-arena world: the public world-state strategy
+    (copters anywhere they can be, plates swinging up to ±1.5 rad)."""
+    cfg = Config().replace({"copters.n": n})
+    return fst.world_states(cfg, n_envs=1, moving=False).map(lambda s: (s.pos, s.yaw, s.theta))
 
 
 @pytest.mark.parametrize("sonar", [{}, {"offset": 0.08}, {"beam": "cone", "beam_rays": 5},

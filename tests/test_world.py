@@ -15,6 +15,7 @@ from finkensim.behaviours.random_walk import random_walk_env
 from finkensim.checks import check_determinism, first_difference
 from finkensim.config import Config, ConfigError
 from finkensim.copters import wrap_angle
+from finkensim.testing import strategies as fst
 from finkensim.world import World, WorldState
 from tests.naive import world as naive
 
@@ -44,19 +45,17 @@ def _room(width, length, radius) -> int:
     return max(1, int(PACKING_DENSITY * width * length / (math.pi * radius ** 2)))
 
 
+# the configs of the invariant tests: any arena and copter size, up to 4 copters, dynamics from gentle to extreme
+INVARIANT_BOUNDS = {"arena.width": (0.5, 6.0), "arena.length": (0.5, 6.0), "copters.radius": (0.01, 2.0),
+                    "copters.n": (1, 4), "walls.n_segments": (1, 4), "copters.max_speed": (0.1, 50.0),
+                    "copters.max_accel": (0.1, 1000.0), "copters.velocity_tau": (0.0, 2.0), "simulation.dt": (0.001, 1.0)}
+
+
 @st.composite
-def scenarios(draw):
-    width = draw(st.floats(0.5, 6.0))
-    length = draw(st.floats(0.5, 6.0))
-    radius = draw(st.floats(0.01, min(2.0, 0.45 * min(width, length))))
-    n = min(draw(st.integers(1, 4)), _room(width, length, radius))
-    cfg = Config().replace({
-        "arena.width": width, "arena.length": length, "copters.radius": radius, "copters.n": n,
-        "copters.min_separation": 0.0, "walls.n_segments": draw(st.integers(1, 4)),
-        "copters.max_speed": draw(st.floats(0.1, 50.0)), "copters.max_accel": draw(st.floats(0.1, 1000.0)),
-        "copters.velocity_tau": draw(st.sampled_from([0.0, 0.05, 0.3, 2.0])),
-        "simulation.dt": draw(st.sampled_from([0.001, 0.05, 0.2, 1.0])),
-    })
+def command_scenarios(draw):
+    """(config, commands (T, B, N, 2) m/s, yaw-rate commands (T, B, N) rad/s, seed): huge, reversing commands."""
+    cfg = draw(fst.configs(sections=(), bounds=INVARIANT_BOUNDS, fixed={"copters.min_separation": 0.0}))
+    n = cfg.copters.n
     T = draw(st.integers(1, 25))
     B = 2
     scale = draw(st.sampled_from([1.0, 1e3, 1e8]))
@@ -68,7 +67,7 @@ def scenarios(draw):
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(scenarios())
+@given(command_scenarios())
 def test_copters_stay_inside_and_within_limits(scenario):
     cfg, cmds, yaw_cmds, seed = scenario
     world = World(cfg)
@@ -250,29 +249,19 @@ def test_rollout_is_pure_and_records_before_each_step():
 
 @st.composite
 def small_cases(draw):
-    width, length = draw(st.floats(1.0, 5.0)), draw(st.floats(1.0, 5.0))
-    radius = draw(st.floats(0.02, 0.3))
-    n = draw(st.integers(1, 4))
-    cfg = Config().replace({
-        "arena.width": width, "arena.length": length, "copters.radius": radius, "copters.n": n,
-        "copters.min_separation": 0.0, "walls.n_segments": draw(st.integers(1, 3)),
-        "walls.substeps": draw(st.integers(1, 6)), "walls.plate_mass": draw(st.floats(0.05, 40.0)),
-        "walls.bending": draw(st.booleans()), "walls.threshold": draw(st.floats(0.2, 2.0)),
-        "copters.velocity_tau": draw(st.sampled_from([0.0, 0.3])), "copters.yaw_tau": draw(st.sampled_from([0.0, 0.2])),
-        "copters.max_accel": draw(st.floats(0.5, 20.0)),
-    })
-    B = draw(st.integers(1, 2))
-    S = 4 * cfg.walls.n_segments
+    """(config, state fields, commands): any state :func:`finkensim.testing.strategies.world_states` draws (plates
+    swinging, copters moving), contact flags set at random, a few steps of commands beyond the limits."""
+    cfg = draw(fst.configs(sections=(), bounds={
+        "arena.width": (1.0, 5.0), "arena.length": (1.0, 5.0), "copters.radius": (0.02, 0.3), "copters.n": (1, 4),
+        "walls.n_segments": (1, 3), "walls.substeps": (1, 6), "walls.plate_mass": (0.05, 40.0),
+        "walls.threshold": (0.2, 2.0), "copters.yaw_tau": (0.0, 0.2), "copters.velocity_tau": (0.0, 0.3),
+        "copters.max_accel": (0.5, 20.0)}, fixed={"copters.min_separation": 0.0, "walls.bending": draw(st.booleans())}))
+    state = draw(fst.world_states(cfg, n_envs=(1, 2)))
+    B, n = state.n_envs, state.n_copters
     u = lambda shape, lo, hi: draw(hnp.arrays(np.float64, shape, elements=st.floats(lo, hi)))  # noqa: E731
-    frac = u((B, n, 2), 0.0, 1.0)
-    pos = radius + frac * (np.array([width, length]) - 2 * radius)
-    max_speed = cfg.copters.max_speed
-    vel = u((B, n, 2), -max_speed / 1.5, max_speed / 1.5)
-    fields_ = dict(
-        pos=pos, vel=vel, yaw=u((B, n), -3.14, 3.14), yaw_rate=u((B, n), -1.5, 1.5),
-        theta=u((B, S), -1.5, 1.5), omega=u((B, S), -3.0, 3.0), integ=u((B, S), -7.0, 7.0),
-        in_wall=draw(hnp.arrays(bool, (B, n))), in_collision=draw(hnp.arrays(bool, (B, n))),
-    )
+    fields_ = dict(pos=state.pos, vel=state.vel, yaw=state.yaw, yaw_rate=state.yaw_rate, theta=state.theta,
+                   omega=state.omega, integ=state.integ, in_wall=draw(hnp.arrays(bool, (B, n))),
+                   in_collision=draw(hnp.arrays(bool, (B, n))))
     cmds = [(u((B, n, 2), -3.0, 3.0), u((B, n), -5.0, 5.0)) for _ in range(draw(st.integers(1, 4)))]
     return cfg, fields_, cmds
 

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..flightlog import FlightLog
+from ..sensors.sonar_hold import held_steps
 
 __all__ = ["Conventions", "draw_conventions", "DEFAULT_CONVENTIONS", "NO_ECHO", "NOISE"]
 
@@ -81,12 +82,17 @@ class Conventions:
         sc = cfg.sonar
         echo = log.extras["ultrasonic_hit_type"] > 0
         y = log.ultrasonic
+        # a sample-and-hold sonar holds its noise with its measurement: draws are indexed by the measuring sample
+        held = (held_steps(np.arange(y.shape[0]), cfg.simulation.dt, sc.update_hz, 0.0)  # the simulator: from t = 0
+                if sc.update_hz > 0 else slice(None))
         if self.noise == "laplace":
             b = sc.sigma / math.sqrt(2.0)  # Laplace(0, b) has standard deviation σ
-            y = np.where(echo, np.clip(y + rng.laplace(0.0, b, y.shape), sc.min_range, sc.max_range), y)
+            echo = echo[held]
+            y = np.where(echo, np.clip(y + rng.laplace(0.0, b, y.shape)[held], sc.min_range, sc.max_range), y)
         lost = y >= sc.max_range  # the simulator's no-echo value (and echoes clipped to it, as a driver would)
         if self.no_echo == "noisy_clipped":
-            y = np.where(lost, np.clip(sc.max_range + rng.normal(0.0, sc.sigma, y.shape), sc.min_range, sc.max_range), y)
+            y = np.where(lost, np.clip(sc.max_range + rng.normal(0.0, sc.sigma, y.shape)[held], sc.min_range,
+                                       sc.max_range), y)
         elif self.no_echo == "zero":
             y = np.where(lost, 0.0, y)
         elif self.no_echo == "nan":

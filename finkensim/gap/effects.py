@@ -126,6 +126,7 @@ class Effect:
         return {p.name: (p.lo if p.lo >= 0 else 0.0) for p in self.params}
 
 
+#: The catalogue: effect name → :class:`Effect` (:func:`register` adds or replaces one).
 REGISTRY: dict[str, Effect] = {}
 
 #: a fitted value within this share of its range from a bound sits at the bound
@@ -276,6 +277,23 @@ register(Effect(
     doc="speed of sound differs from the assumed one (temperature): readings scale by a factor",
     initial=lambda b: {"factor": 1.0}, expected_features=("true_range",),
     calibrate=lambda v, cfg: {"sonar.range_scale": cfg.sonar.range_scale * v["factor"]}))
+
+
+def _update_rate(base: ModelParams, v: dict) -> ModelParams:
+    hz = float(v["rate_hz"])
+    return base.with_sonar(update_hz=hz, update_phase=float(v["phase"]) / hz if hz > 0 else 0.0)
+
+
+register(Effect(
+    "sonar_update_rate", ("ultrasonic",), (Param("rate_hz", 0.0, 50.0, unit="Hz"), Param("phase", 0.0, 1.0)),
+    _update_rate,
+    doc="the sonars measure rate_hz times a second and hold each reading until the next (sample-and-hold; phase: "
+        "the first measurement, in periods from the log's first sample; rate 0 = every sample): readings describe "
+        "the world up to one period earlier, in a sawtooth",
+    initial=lambda b: {"rate_hz": b.sonar.update_hz, "phase": b.sonar.update_phase * b.sonar.update_hz},
+    expected_features=("range_rate", "speed"),
+    calibrate=lambda v, cfg: {"sonar.update_hz": float(v["rate_hz"]),
+                              "sonar.update_phase": float(v["phase"]) / float(v["rate_hz"]) if v["rate_hz"] > 0 else 0.0}))
 register(Effect(
     "latency", ("ultrasonic", "ranging", "imu"),
     (Param("ultrasonic", -0.5, 1.0, unit="s"), Param("ranging", -0.5, 1.0, unit="s"),

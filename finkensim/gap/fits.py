@@ -189,4 +189,82 @@ def _fit_bulge(diag: "Diagnosis", effect, current, vals):
     return nelder_mead(f, v, group, [v[q.name] for q in group], scores[i], maxfev=60)
 
 
-CUSTOM_FITS = {"imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}
+#: s of each flight's start searched on the full rate grid by :func:`hold_rhythms` (then refined on all of it)
+RHYTHM_WINDOW = 120.0
+
+
+def _coherence(rates, times):
+    """(strength (R,), mean direction (R,) complex): over flights, |Σ exp(2πi·rate·t)| / count and the flights' unit
+    sums; ``times`` a list of (n_f,) arrays of change times (s)."""
+    total = np.zeros(rates.size, dtype=np.complex128)
+    strength = np.zeros(rates.size)
+    for tt in times:
+        acc = np.zeros(rates.size, dtype=np.complex128)
+        for chunk in np.array_split(tt, max(1, tt.size // 256)):
+            acc += np.exp(2j * np.pi * np.outer(rates, chunk)).sum(axis=1)
+        strength += np.abs(acc) / tt.size / len(times)
+        total += acc / np.maximum(np.abs(acc), 1e-300)
+    return strength, total
+
+
+def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 0.25):
+    """The ``n`` strongest sample-and-hold rhythms in the sonar readings: [(rate Hz, phase in periods, strength)].
+
+    A held sonar changes its reading only at measuring samples, so the times of the changes (a sample whose reading
+    differs from the previous sample's, any copter and sonar) line up with a period 1/rate: the strength of a rate is
+    the mean over flights of |Σ exp(2πi·rate·t)| / count over the changes' times t (1: every change on one rhythm; the
+    harmonics of a true rate are smeared by the changes' rounding to samples; rates at or above 2/3 of the log rate
+    are not held at all and are not searched). The rate grid stays in phase to ``resolution`` cycles over the first
+    :data:`RHYTHM_WINDOW` s of the flights; on longer flights each of the best rates is refined on all their changes.
+    The phase is the mean direction of the flights' sums.
+    """
+    times, longest, fastest = [], 0.0, math.inf
+    for fl in flights:
+        u = fl.log.ultrasonic
+        if u is None or u.shape[0] < 3:
+            continue
+        prev, cur = u[:-1], u[1:]
+        changed = np.any((cur != prev) & np.isfinite(cur) & np.isfinite(prev), axis=(1, 2))
+        k = np.flatnonzero(changed) + 1
+        if k.size >= 10:
+            times.append(k * fl.dt)
+            longest = max(longest, u.shape[0] * fl.dt)
+            fastest = min(fastest, 1.0 / fl.dt)
+    hi = min(hi, fastest / 1.5)
+    if not times or hi <= max(lo, 0.5):
+        return []
+    window = min(longest, RHYTHM_WINDOW)
+    rates = np.arange(max(lo, 0.5), hi, resolution / window)
+    strength, total = _coherence(rates, [t[t < window] for t in times if (t < window).sum() >= 10] or times)
+    out = []
+    for i in np.argsort(-strength):
+        if all(abs(rates[i] - r) > 2 * resolution / window for r, _, _ in out):
+            r, z, st = float(rates[i]), total[i], float(strength[i])
+            if longest > window:  # refine on every change: a grid in phase over the longest flight
+                step = resolution / window
+                fine = r + np.arange(-step, step + 1e-12, resolution / longest)
+                fs, ft = _coherence(fine, times)
+                j = int(np.argmax(fs))
+                r, z, st = float(fine[j]), ft[j], float(fs[j])
+            out.append((r, float((np.angle(z) / (2 * np.pi)) % 1.0), st))
+        if len(out) == n:
+            break
+    return out
+
+
+def _fit_update_rate(diag: "Diagnosis", effect, current, vals):
+    """Sample-and-hold: the strongest rhythms of the readings' changes (:func:`hold_rhythms`; they pick rate and
+    phase to within the grid, a step function of both being hopeless for a simplex over a long flight) scored
+    against the starting values, the best kept. The rhythms are found in every sample of the flights (held-out
+    ones too): two numbers from thousands of change times; the choice among them is by the training score."""
+    rate, phase = effect.params
+    f = lambda v: diag._objective(effect, current, ["ultrasonic"], v)  # noqa: E731
+    dt = min(fl.dt for fl in diag.flights)
+    # a change shows at the first sample at or after its measurement, on average half a sample late
+    cands = [dict(vals)] + [{rate.name: r, phase.name: (ph - r * dt * back) % 1.0}
+                            for r, ph, _ in hold_rhythms(diag.flights, rate.lo, rate.hi) for back in (0.5, 0.25, 0.0)]
+    scores = [f(c) for c in cands]
+    return cands[int(np.argmin(scores))]
+
+
+CUSTOM_FITS = {"sonar_update_rate": _fit_update_rate, "imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

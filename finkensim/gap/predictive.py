@@ -19,6 +19,7 @@ from ..config import Config
 from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
+from ..sensors.sonar_hold import held_steps
 from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 
 # --------------------------------------------------------------------------------------- tables
@@ -221,12 +222,13 @@ class SonarTable(Table):
         key = ("sonar", split.key, round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9), round(p.bulge_shape, 9),
                sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
-               sp.max_range, bool(sp.crosstalk & CROSSTALK_GEOMETRIC))
+               sp.max_range, bool(sp.crosstalk & CROSSTALK_GEOMETRIC), sp.update_hz, sp.update_phase)
         hit = self.cache.get(key)
         if hit is not None:
             return hit
         u = split.u
-        times = np.clip(fl.samples[u] - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
+        measured = held_steps(fl.samples[u], fl.dt, sp.update_hz, sp.update_phase)  # sample-and-hold
+        times = np.clip(measured - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
         need = self.needed(split, (K, N, S))
         dist = np.empty((K, N, S, G))

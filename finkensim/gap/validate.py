@@ -173,6 +173,9 @@ CASES: dict[str, Case] = {
         None, {"half_angle_deg": h}), "ultrasonic"),
     "sound_speed": Case("sound_speed", "sound_speed", lambda r: (
         {}, _post_sound_speed(k := 1.0 + _sign(r) * float(r.uniform(0.06, 0.12))), {"factor": k}), "ultrasonic"),
+    # held at 2-4.5 Hz: at least two samples per measurement at every logging rate of the conventions (10-50 Hz)
+    "sonar_update_rate": Case("sonar_update_rate", "sonar_update_rate", lambda r: (
+        {"sonar.update_hz": (hz := float(r.uniform(2.0, 4.5)))}, None, {"rate_hz": hz}), "ultrasonic"),
     "latency": Case("latency", "latency", lambda r: (
         {}, _post_latency(s := ("ultrasonic", "ranging", "imu")[int(r.integers(3))], float(r.uniform(0.15, 0.4)),
                           truth := {"_sensor": s}), truth)),

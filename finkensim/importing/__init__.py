@@ -1,4 +1,5 @@
-"""Import asynchronous arena recordings (CSV, ROS 1/ROS 2 bags, MCAP) into ``docs/formats/flightlog.md`` flights.
+"""Import asynchronous arena recordings (CSV, ROS 1/ROS 2 bags, MCAP, Paparazzi telemetry) into
+``docs/formats/flightlog.md`` flights.
 
     from finkensim.importing import read_csv, build_flight
     rec = read_csv("track.csv", "read.csv")              # a Recording: long-form tables, nothing resampled
@@ -8,6 +9,8 @@
 checks it, estimates or applies the clock offset (:mod:`.clock`), places every reading unchanged on a common time
 base and interpolates the poses to it (:mod:`.align`, :mod:`.poses`). :func:`to_recording` / :func:`write_csv`
 (:mod:`.export`) turn a simulated flight into an asynchronous recording, for tests and demonstrations.
+:func:`read_paparazzi` reads the FINken's own Paparazzi telemetry (``.data`` + ``.log``, :mod:`.paparazzi`);
+:func:`write_paparazzi` writes a simulated flight as such telemetry (:mod:`.paparazzi_export`).
 """
 from __future__ import annotations
 
@@ -16,9 +19,13 @@ from .bags import read_bag, write_bag
 from .clock import ClockEstimate, ClockOffsetError, estimate_offset
 from .csvtables import read_csv
 from .export import to_recording, write_csv
+from .paparazzi import PaparazziLog, read_paparazzi
+from .paparazzi_export import write_paparazzi
+from .paparazzi_protocol import PaparazziMap, Protocol, read_map, read_protocol
 from .recording import (IMU_CHANNELS, READING_COLUMNS, TRACKING_COLUMNS, Recording, RecordingError, check_recording,
                         parse_channel)
 
 __all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "read_csv",
            "build_flight", "place_readings", "check_recording", "parse_channel", "estimate_offset", "ClockEstimate",
-           "ClockOffsetError", "to_recording", "write_csv", "read_bag", "write_bag"]
+           "ClockOffsetError", "to_recording", "write_csv", "read_bag", "write_bag", "read_paparazzi", "PaparazziLog",
+           "write_paparazzi", "read_protocol", "Protocol", "read_map", "PaparazziMap"]

@@ -4,6 +4,8 @@
                      --sonar-offset 0.1 [--copter-radius M] [--altitude M] [--clock-offset auto|SECONDS] \\
                      [--rate HZ] [--config SCENARIO.toml] --out FLIGHT.npz
     finkensim import --bag FILE --topics topics.toml --arena 3,4 ... --out FLIGHT.npz
+    finkensim import --paparazzi LOG.data[.gz] [--messages messages.xml] [--paparazzi-map MAP.toml] \\
+                     --tracking TRACK.csv --arena 4,3 --sonar-offset 0.1 ... --out FLIGHT.npz
 
 ``finkensim.cli`` registers it with :func:`add_parser`; bad input is one line naming the argument, file, column
 or channel (exit code 2); the import decisions (rates, clock offset ± uncertainty, what was dropped and why) are
@@ -29,14 +31,14 @@ def add_parser(sub) -> None:
     """Register ``import`` on the ``finkensim`` subparsers ``sub``."""
     p = sub.add_parser(
         "import",
-        help="import an arena recording (CSV, ROS bag, MCAP) into a flight log: clocks aligned, readings unchanged",
+        help="import an arena recording (CSV, ROS bag, MCAP, Paparazzi telemetry) into a flight log: clocks aligned, readings unchanged",
         description="Read tracking and sensor readings recorded at their own rates (CSV pair, or a ROS 1 / ROS 2 "
-                    "bag or MCAP file with a topics TOML), estimate or apply the offset between the sensors' clock "
+                    "bag or MCAP file with a topics TOML, or Paparazzi telemetry with a tracking CSV), estimate or apply the offset between the sensors' clock "
                     "and the tracking clock, place every reading unchanged on a common time base, interpolate the "
                     "poses to it, and write one flight log (docs/formats/flightlog.md). The decisions are printed and "
                     "kept in the log's meta['import'].",
     )
-    src = p.add_argument_group("input (a CSV pair or a bag)")
+    src = p.add_argument_group("input (a CSV pair, a bag, or Paparazzi telemetry with a tracking CSV)")
     src.add_argument("--tracking", metavar="TRACK.csv", help="CSV with columns t, copter, x, y, yaw (s, name, m, m, rad) "
                                                             "and optionally z (m, height: ranging is then 3-D)")
     src.add_argument("--readings", metavar="READ.csv",
@@ -45,9 +47,16 @@ def add_parser(sub) -> None:
     src.add_argument("--bag", metavar="FILE", help="ROS 1 .bag, ROS 2 bag directory, or .mcap file (needs the "
                                                    "[import] extra)")
     src.add_argument("--topics", metavar="TOPICS.toml", help="with --bag: which topic is which copter's channel")
+    src.add_argument("--paparazzi", metavar="LOG.data", help="Paparazzi telemetry .data (gzip or not); its .log "
+                                                             "(same name) gives the message layouts")
+    src.add_argument("--messages", metavar="messages.xml", help="with --paparazzi: message layouts to add to (or "
+                                                                "replace in) the .log's protocol")
+    src.add_argument("--paparazzi-map", metavar="MAP.toml", help="with --paparazzi: which message field is which "
+                     "channel, its unit and sonar yaw (default: the FINken's, finkensim/data/paparazzi_finken.toml)")
     p.add_argument("--arena", required=True, metavar="W,L", help="arena width and length in m, e.g. 3,4")
     p.add_argument("--sonar-yaw-deg", metavar="A,B,...",
-                   help="mounting yaw of ultrasonic/0, /1, ... relative to the heading, degrees (front 0, left 90)")
+                   help="mounting yaw of ultrasonic/0, /1, ... relative to the heading, degrees (front 0, left 90; "
+                        "default with --paparazzi: the map's)")
     p.add_argument("--sonar-offset", type=float, metavar="M", help="distance from the copter centre to each sonar (m)")
     p.add_argument("--copter-radius", type=float, default=None, metavar="M", help="copter body radius (m; default "
                    "0.15, or the --config scenario's)")
@@ -78,9 +87,36 @@ def _floats(flag, text, n=None):
     return vals
 
 
+def _paparazzi(args):
+    """(recording, sonar yaw from the map) of --paparazzi with the --tracking CSV (or sensor-only without it)."""
+    import numpy as np
+
+    from .csvtables import read_csv
+    from .paparazzi import read_paparazzi
+    from .paparazzi_protocol import DEFAULT_MAP
+
+    if args.bag is not None or args.readings is not None:
+        raise _Usage("give --paparazzi (with --tracking) or --bag or --tracking/--readings, not several")
+    pp = read_paparazzi(args.paparazzi, messages=args.messages,
+                        map=Path(args.paparazzi_map) if args.paparazzi_map else DEFAULT_MAP)
+    if args.tracking is None:  # sensor-only: say what was read before build_flight says what is missing
+        for (copter, channel), g in pp.readings.groupby(["copter", "channel"], sort=False):
+            t, v = g["t"].to_numpy(), g["value"].to_numpy()
+            step = float(np.median(np.diff(t))) if t.size > 1 else float("nan")
+            print(f"  read {copter} {channel}: {t.size} readings over {t[-1] - t[0]:.1f} s, median interval "
+                  f"{1000 * step:.3g} ms, {v.min():.4g} to {v.max():.4g} ({pp.notes['units'][channel]}; in SI units)")
+    tracking = read_csv(args.tracking).tracking if args.tracking is not None else None
+    return pp.recording(tracking), pp.sonar_yaw
+
+
 def _recording(args):
+    """(recording, default sonar yaw or None) of the input arguments."""
     from .csvtables import read_csv
 
+    if args.paparazzi is not None:
+        return _paparazzi(args)
+    if args.messages is not None or args.paparazzi_map is not None:
+        raise _Usage("--messages and --paparazzi-map go with --paparazzi LOG.data")
     if args.bag is not None:
         if args.tracking or args.readings:
             raise _Usage("give either --bag (with --topics) or --tracking/--readings, not both")
@@ -91,11 +127,11 @@ def _recording(args):
         except ImportError as exc:
             raise _Usage(f"reading bags needs the [import] extra ({exc}): pip install 'finkensim[import]'") \
                 from None
-        return read_bag(args.bag, args.topics)
+        return read_bag(args.bag, args.topics), None
     if args.tracking is None:
         raise _Usage("an input is required: --tracking TRACK.csv [--readings READ.csv], or --bag FILE "
-                               "--topics TOPICS.toml")
-    return read_csv(args.tracking, args.readings)
+                     "--topics TOPICS.toml, or --paparazzi LOG.data --tracking TRACK.csv")
+    return read_csv(args.tracking, args.readings), None
 
 
 def run(args) -> int:
@@ -150,7 +186,9 @@ def _run(prog, args) -> int:
     if not out.parent.exists():
         raise _Usage(f"--out {args.out!r}: directory {str(out.parent)!r} does not exist")
     try:
-        rec = _recording(args)
+        rec, map_yaw = _recording(args)
+        if yaw is None and map_yaw is not None:
+            yaw = np.asarray(map_yaw)
         log = build_flight(rec, arena=(W, L), sonar_yaw=yaw, sonar_offset=args.sonar_offset, copter_radius=radius,
                            altitude=args.altitude, clock_offset=clock, rate=args.rate, max_offset=args.max_offset,
                            config=cfg)

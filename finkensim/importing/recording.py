@@ -251,7 +251,10 @@ def check_recording(rec: Recording) -> CheckedRecording:
     _columns(tr, TRACKING_COLUMNS, "tracking")
     _columns(rd, READING_COLUMNS, "readings")
     if len(tr) == 0:
-        raise RecordingError("tracking: no rows; expected each copter's poses (t, copter, x, y, yaw)")
+        what = "this is a sensor-only recording (no poses); " if rec.notes.get("sensor_only") else ""
+        raise RecordingError(f"tracking: no rows; {what}a flight log needs each copter's poses (spec/flightlog.md: "
+                             "pose (T, N, 3)): add the arena's tracking, a tracking CSV with columns t, copter, x, y, "
+                             "yaw (--tracking TRACK.csv); the readings alone can be analysed but not diagnosed")
     ci, copters = _names(tr, "copter", "tracking")
     t = _floats(tr, "t", "tracking")
     x, y, yaw = (_floats(tr, c, "tracking") for c in ("x", "y", "yaw"))

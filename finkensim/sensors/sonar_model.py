@@ -77,6 +77,8 @@ class SonarModel(NamedTuple):
     echo distance (speed of sound differs from the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
     converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
+    update_hz (``sonar.update_hz``; 0 = every step) and update_phase s (``sonar.update_phase``): the sample-and-hold
+    of the readings (:mod:`finkensim.sensors.sonar_hold`; the diagnosis fits both).
     """
 
     mount_yaw: np.ndarray
@@ -102,6 +104,8 @@ class SonarModel(NamedTuple):
     range_scale: float = 1.0
     bias: float = 0.0
     crosstalk_hear_probability: float = 1.0
+    update_hz: float = 0.0
+    update_phase: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: Config | SonarConfig, radius: float | None = None,
@@ -144,6 +148,8 @@ class SonarModel(NamedTuple):
             range_scale=float(sc.range_scale),
             bias=float(sc.bias),
             crosstalk_hear_probability=float(sc.crosstalk_hear_probability),
+            update_hz=float(sc.update_hz),
+            update_phase=float(sc.update_phase),
         ).with_beam((h if sc.beam_half_angle_deg < 0.0 else math.radians(sc.beam_half_angle_deg))
                     if sc.beam == "cone" else 0.0, sc.beam_rays)
 

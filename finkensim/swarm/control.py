@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.twin import INTERNAL
@@ -165,6 +166,11 @@ class Controlled:
         kernel = control_step if B * N >= PARALLEL_MIN_COPTERS else control_step_serial
         kernel(ws.arrays(), state.imu_bias, run, cmd, obs, w.copter_params, w.hinge_params, w.geometry,
                      sim.sonar, sim.ranging.params, sim.beacons, sim.imu, self._grid_buffers(B, N))
+        if sim.enabled["sonar"] and sim.sonar.update_hz > 0.0:  # sample-and-hold, the state's held readings
+            held = state.behaviour.sonar_held
+            for b in range(B):
+                hold_env(obs.sonar[b], held[b], run.step0 + n_steps, run.dt, sim.sonar.update_hz,
+                         sim.sonar.update_phase)
         return obs
 
     def sense(self, state: SwarmState, out: ControlReadings | None = None) -> ControlReadings:

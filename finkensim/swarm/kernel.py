@@ -27,6 +27,7 @@ from ..behaviours.random_walk import random_walk_env
 from ..behaviours.wall_check import WALL_CHECK_NONE, dead_reckon_env, wall_check_env
 from ..sensors.imu import imu_env
 from ..sensors.ranging_kernels import ranging_grid_env
+from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
 from ..kernels.threads import run_ranges
@@ -40,6 +41,7 @@ __all__ = ["swarm_env", "swarm_rollout", "sonar_work_buffers", "PARALLEL_MIN_COP
 # the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
 plates_twin = twin(displaced_plates_env)
 sonar_twin = twin(ultrasonic_env)
+hold_twin = twin(hold_env)
 down_twin = twin(down_env)
 ranging_twin = twin(ranging_grid_env)
 imu_twin = twin(imu_env)
@@ -172,6 +174,8 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
                 plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
                 sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k,
                            (sonar_buf, dist, hit_kind, hit, slot), son, grid, grid_b)
+                if sp.update_hz > 0.0:
+                    hold_twin(son, mem.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
             if run.do_down:
                 down_twin(alt, sp, seed, env, k, down)
             if run.do_ranging:

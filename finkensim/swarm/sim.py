@@ -15,6 +15,7 @@ from ..behaviours.wall_check import WALL_CHECK_NONE, WALL_CHECK_SEQUENCE, Behavi
 from ..config import Config, ConfigError, load_config
 from ..sensors.imu import ImuModel, imu_step
 from ..sensors.ranging import RangingModel, ranging_readings
+from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic_readings
 from ..world import World
 from ..kernels.cellgrid import engine_grid
@@ -214,6 +215,9 @@ class SwarmSim:
         rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging) if on["ranging"] else None
         bias = state.imu_bias.copy()
         mem = state.behaviour.copy()
+        if on["sonar"] and self.sonar.update_hz > 0.0:
+            for b in range(B):
+                hold_env(sonar[b], mem.sonar_held[b], k, self.dt, self.sonar.update_hz, self.sonar.update_phase)
         imu_acc = imu_gyro = None
         if on["imu"]:
             imu_acc, imu_gyro = imu_step(ws.acc, ws.yaw, ws.yaw_rate, bias, self.imu, seed, env_ids, k)

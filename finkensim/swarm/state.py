@@ -103,7 +103,7 @@ class SwarmState:
         """The IMU bias and behaviour memory as a :class:`MemoryArrays` record (the same arrays)."""
         m = self.behaviour
         return MemoryArrays(self.imu_bias, m.fail_count, m.wall, m.anchor, m.dr_pos, m.dr_vel, m.dr_yaw,
-                            m.wall_onsets, m.wall_readings)
+                            m.wall_onsets, m.wall_readings, m.sonar_held)
 
 
 @dataclass(frozen=True)
@@ -146,7 +146,7 @@ class MemoryArrays(NamedTuple):
     """The sensors' and behaviours' memory as one flat record for the kernels (views of a
     :class:`SwarmState`): bias (B, N, 3) IMU bias; fail_count (B, N, 4) int64; wall (B, N, 4) bool;
     anchor (B, N, 4, 3); dr_pos (B, N, 2) m; dr_vel (B, N, 2) m/s; dr_yaw (B, N) rad; wall_onsets,
-    wall_readings (B, N) int64 (see :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
+    wall_readings (B, N) int64; sonar_held (B, N, 4) m (see :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
 
     bias: np.ndarray
     fail_count: np.ndarray
@@ -157,6 +157,7 @@ class MemoryArrays(NamedTuple):
     dr_yaw: np.ndarray
     wall_onsets: np.ndarray
     wall_readings: np.ndarray
+    sonar_held: np.ndarray
 
 
 #: RunSpec.ranging_rows of a kernel that takes no rows from it

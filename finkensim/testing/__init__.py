@@ -1,0 +1,35 @@
+"""Tools for property-based tests of finkensim and of what users build on it.
+
+    from finkensim.testing import assert_inside_arena, assert_no_overlap, assert_reproducible, assert_flightlog_valid
+    from finkensim.testing import strategies as fst         # Hypothesis strategies (needs only hypothesis)
+
+* :mod:`.strategies` — Hypothesis strategies generating only valid objects: configs, scenarios, world states,
+  sensor models, flight logs, recordings, gap effects.
+* assertions (:mod:`.assertions`) — invariant checks whose failure messages name the copter, step, values and
+  what was expected.
+* :mod:`.profiles` — the ``fast`` / ``thorough`` Hypothesis profiles (``FINKENSIM_HYPOTHESIS``).
+
+The plug-in checkers (``check_behaviour``, ``check_effect``, ``check_task``) join this namespace when the plug-in
+contracts exist; :func:`finkensim.checks.check_determinism` is the checker of a configuration today.
+
+Importing this package loads neither Hypothesis nor pytest: ``strategies`` and ``profiles`` are imported on first
+use, so the assertions work without the test extras.
+"""
+from __future__ import annotations
+
+import importlib
+
+from .assertions import assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible
+
+__all__ = ["assert_inside_arena", "assert_no_overlap", "assert_reproducible", "assert_flightlog_valid",
+           "strategies", "profiles"]
+
+_LAZY = ("strategies", "profiles")
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        module = importlib.import_module(f".{name}", __name__)
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
