@@ -15,11 +15,16 @@ The public API, for notebooks (``import finkensim as fs``):
 ``fs.metrics``            swarm metrics (cohesion, wall contact, coverage …)
 ========================  ==================================================================================
 
-Names are imported on first use, so ``import finkensim`` stays fast.
+Names are imported on first use, so ``import finkensim`` stays fast (it does not import numba). It chooses
+numba's on-disk cache of compiled kernels, shared by every entry point (:mod:`finkensim.numba_cache`).
 """
 from __future__ import annotations
 
 import importlib
+
+from . import numba_cache as _numba_cache
+
+_numba_cache.configure()  # before any kernel module is imported
 
 __version__ = "0.1.0"
 

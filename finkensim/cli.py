@@ -6,6 +6,7 @@
     finkensim gap REAL.npz [REAL2.npz ...] [--config sim.toml] [--out DIR] [--heldout NAME ...]
     finkensim gap-validate [--cases CASE ...] [--trials N] [--flights K] [--duration S] [--out DIR]
     finkensim check FILE [FILE ...] [--arena W L]
+    finkensim compile [scenario.toml] [--workers N]
     finkensim --version
 
 Each subcommand is one ``_add_<name>(subparsers)`` function that registers its parser and sets
@@ -364,6 +365,7 @@ def _add_gap_validate(sub) -> None:
 
 def cmd_gap_validate(args) -> int:
     prog = args.prog
+    os.environ.setdefault("OMP_WAIT_POLICY", "passive")  # as in cmd_gap: serial trials run many short kernels
     from .atomic import write_atomic
     from .gap.validate import CASES, expand_cases, get_case
     from .gap.validate_tables import confusion
@@ -464,9 +466,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_gap_validate(sub)
     _add_check(sub)
     from .importing.cli import add_parser as add_import
+    from .precompile_cli import add_parser as add_compile
     from .tune.cli import add_parser as add_tune  # optuna is imported only when the command runs
 
     add_import(sub)
+    add_compile(sub)
     add_tune(sub)
     return parser
 

@@ -5,13 +5,19 @@ outermost compile intervals (a kernel that compiles its callees nests their even
 once). Loading a kernel from numba's on-disk cache is not compiling and is not counted: with a warm cache the
 figure is about 0 s. ``ct.kernels`` is the number of outermost compilations; ``ct.intervals`` lists every
 compilation (nested ones too) for a profile of where compile time goes (:meth:`CompileTime.profile`).
+
+``with compiling_notice(bar):`` makes a tqdm progress bar say :data:`COMPILING` while numba compiles in the block
+and leaves the compile time out of its rate and ETA.
 """
 from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
 
-__all__ = ["CompileTime", "compile_timer", "outermost_seconds"]
+__all__ = ["COMPILING", "CompileTime", "compile_timer", "compiling_notice", "outermost_seconds"]
+
+#: what a progress bar says while numba compiles, instead of an ETA that would count the compile as progress
+COMPILING = "compiling (first run only)…"
 
 
 @dataclass
@@ -79,3 +85,29 @@ def compile_timer():
     result.seconds, result.kernels = outermost_seconds(
         (ts, ev.status == event.EventStatus.START) for ts, ev in rec.buffer)
     result.intervals = _intervals(rec.buffer)
+
+
+@contextlib.contextmanager
+def compiling_notice(bar):
+    """While the block runs, a tqdm ``bar`` shows :data:`COMPILING` as its description during each outermost numba
+    compilation (its ETA then reads ``?``), and afterwards takes its label back and restarts its clock from the end
+    of the compilation (tqdm's ``unpause``), so the rate and ETA count running steps only."""
+    from numba.core import event
+
+    label = bar.desc
+    depth = [0]
+
+    class _Notice(event.Listener):
+        def on_start(self, ev):
+            depth[0] += 1
+            if depth[0] == 1:
+                bar.set_description_str(COMPILING, refresh=True)
+
+        def on_end(self, ev):
+            depth[0] -= 1
+            if depth[0] == 0:
+                bar.set_description_str(label, refresh=False)
+                bar.unpause()
+
+    with event.install_listener("numba:compile", _Notice()):
+        yield bar

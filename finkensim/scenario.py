@@ -32,6 +32,7 @@ __all__ = [
     "DEFAULT_SCENARIO_TOML",
     "default_scenario_path",
     "load_scenario",
+    "flight_log",
     "flight_record_names",
     "sensor_blocks",
     "simulate_flight",
@@ -196,6 +197,15 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
     # n_steps + 1 steps record the states at t = 0 .. duration inclusive
     _, rec = swarm.rollout(state0, n_steps + 1, record=flight_record_names(swarm, ideal),
                            progress="flight" if progress else False)
+    log, traj = flight_log(cfg, swarm, state0, rec, ideal=ideal)
+    return log, traj, swarm.world
+
+
+def flight_log(cfg: Config, swarm: SwarmSim, state0, rec: SwarmRecord, ideal: bool = False) -> tuple[FlightLog,
+                                                                                                    Trajectory]:
+    """The :class:`FlightLog` and :class:`~finkensim.world.Trajectory` of ``swarm``'s rollout ``rec`` (B = 1,
+    recorded with :func:`flight_record_names`) from ``state0``: the second half of :func:`simulate_flight`."""
+    sim = cfg.simulation
     world = swarm.world
     traj = Trajectory(t=rec.t, pose=rec.pose, vel=rec.vel, acc=rec.acc, yaw_rate=rec.yaw_rate, theta=rec.theta)
 
@@ -235,7 +245,7 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         **blocks,
     )
     validate(log)
-    return log, traj, world
+    return log, traj
 
 
 def _tracked(pose, log_cfg, seed: int, env_id: int):

@@ -51,15 +51,15 @@ def test_no_module_imports_another_modules_private_names():
 
 # lower layers never import upper ones (docs/architecture.md, "Layers")
 LAYERS = [
-    ("config", "configfields", "arrays", "kernels", "budget", "atomic", "filekinds"),
+    ("config", "configfields", "arrays", "kernels", "budget", "atomic", "filekinds", "numba_cache", "compiletime"),
     ("arena", "copters", "sensors"),
     ("world", "behaviours"),
     ("swarm",),
     ("flightlog", "metrics", "analysis", "default_scenario"),
-    ("scenario", "episode", "checks", "viz"),
+    ("scenario", "episode", "checks", "viz", "precompile"),
     ("sweep", "gap"),
     ("envs", "tune", "importing", "checkfiles", "datasets", "testing"),  # check reads study files and recordings too
-    ("cli", "cliargs"),
+    ("cli", "cliargs", "precompile_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}
 

@@ -43,11 +43,10 @@ def test_targets_are_judged_from_the_run():
                finken=dict(status="", rows=[dict(N=10, B=1024, env_steps_per_s=1.2e5)]),
                compile=[dict(workload="finken", cold=dict(first_call_s=20.0), warm=dict(first_call_s=0.5))])
     by_target = {t["target"]: (t["measured"], t["met"]) for t in targets(res)}
-    assert by_target["full FINken workload / comparison workload ≤ 3× (N = 10, B = 1024)"] == ("2.5×", True)
-    assert by_target["comparison workload ≥ 100× VMAS (N = 10, B = 1024)"] == ("80×", False)
+    assert by_target["comparison workload ≥ 40× VMAS (N = 10, B = 1024)"] == ("80×", True)
     assert by_target["comparison workload ≥ 5,000× VMAS (N = 10, B = 1)"] == ("6,000×", True)
-    assert by_target["comparison workload ≥ 10× plain NumPy (N = 10, B = 1024)"] == ("12.0×", True)
-    assert by_target["cold JIT, full workload first call ≤ 5 s"] == ("20.0 s", False)
+    assert by_target["comparison workload ≥ 15× plain NumPy (N = 10, B = 1024)"] == ("12.0×", False)
+    assert not any("≤ 3×" in t or "cold JIT" in t for t in by_target)  # retired by issue 43
     assert by_target["warm (cached) first call, full workload ≤ 1 s"] == ("0.50 s", True)
     assert by_target["Gymnasium vector env ≥ 100 k env-steps/s (N = 10, B = 1024, sensors on)"] == (None, None)
 
@@ -163,3 +162,20 @@ def test_breakdown_times_every_kernel_and_reports_against_the_comparison():
                numpy=dict(env_steps_per_s=1e4, copter_steps_per_s=1e5, peak_bytes_per_env=1.0), ratio_numpy=30.0)
     md = report(dict(meta=meta, compare=[cmp], breakdown=dict(r, N=10)))
     assert "takes 5.00 µs per env-step on one thread" in md and f"3× would allow 15.00 µs" in md
+
+
+def test_diagnosis_section_reports_trials_and_targets():
+    """benchmarks.diagnosis times a trial (CPU s, verdict) and renders the section with its targets (no timing
+    assertion: whether a target is met depends on the machine)."""
+    from benchmarks import diagnosis
+
+    rows = diagnosis.time_trials((("null", 3),), log=lambda m: None, warmup=None, duration=20.0)
+    assert [(r["case"], r["seed"]) for r in rows] == [("null", 3)]
+    assert rows[0]["cpu_s"] > 0 and isinstance(rows[0]["correct"], bool)
+    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6,
+               gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5))
+    md = diagnosis.markdown(res)
+    assert md.startswith("## Diagnosis") and "| null | 3 |" in md
+    assert "pairs matrix (1280 trials) on 2 cores ≤ 1 h" in md and "| 0.5 h | yes |" in md
+    assert "4.0 s, peak 0.50 GB | yes |" in md
+    assert "not measured" in diagnosis.markdown({**res, "gap_timing": None})

@@ -150,9 +150,11 @@ class SwarmSim:
 
         from tqdm import tqdm
 
+        from ..compiletime import compiling_notice
+
         part = max(1, n_steps // 100)
         records = []
-        with tqdm(total=n_steps, desc=label, unit="step", file=sys.stderr) as bar:
+        with tqdm(total=n_steps, desc=label, unit="step", file=sys.stderr) as bar, compiling_notice(bar):
             for k0 in range(0, n_steps, part):
                 k = min(part, n_steps - k0)
                 state, rec = self.rollout(state, k, record, python)

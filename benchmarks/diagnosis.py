@@ -1,0 +1,155 @@
+"""``python -m benchmarks.diagnosis [--no-gap-timing]``: what a diagnosis costs (``make bench``, section "diagnosis").
+
+* **Validation trials** (:data:`TRIALS`): one ``finkensim gap-validate`` trial each (2 flights × 30 s, random
+  recording conventions, :func:`finkensim.gap.validate.run_case`), singles and pairs, in this process on one numba
+  thread, as the process-pool workers of ``gap-validate --executor process`` run them. Measured: CPU seconds
+  (``time.process_time``) of each trial after a warm-up trial (the kernels compiled or loaded first), and the
+  verdict (right / wrong), so a change that cuts time also shows whether it changed an answer.
+* **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials ÷ the machine's cores.
+* **examples/gap_timing.py** (``finkensim gap`` on 10 copters × 10 min, in a subprocess): wall-clock seconds and peak
+  resident memory, as the example prints them.
+
+Timings are measured in this run on a machine that others may share: the load average before and after is printed
+with them. No test asserts a time.
+"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import os
+import pstats
+import re
+import statistics
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+#: (case, seed) of the timed trials: the issue's examples (latency, sound speed, geometric cross-talk, the curtain
+#: bulge with a sonar bias, the dearest) and a few more singles and pairs
+TRIALS = (("latency", 51), ("latency", 52), ("latency", 53), ("sound_speed", 51),
+          ("sound_speed+crosstalk_geometric", 51), ("wall_bulge+sonar_bias", 5), ("imu_bias", 51),
+          ("ranging_nlos+sonar_bias", 51))
+FLIGHTS, DURATION = 2, 30.0  # per trial, as in the validation matrices
+PAIRS_MATRIX_TRIALS = 1280  # the pairs matrix of today's catalogue (docs/validation)
+TARGET_TRIAL_CPU = 3.0  # s, median warm trial
+TARGET_MATRIX_HOURS = 1.0
+TARGET_GAP_TIMING = 5.0  # s, examples/gap_timing.py
+WARMUP = ("wall_bulge+sonar_bias", 5)
+
+
+def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURATION, threads: int = 1,
+                profile: bool = False) -> list[dict]:
+    """CPU seconds and verdict of each (case, seed) trial of :data:`FLIGHTS` flights × ``duration`` s, after the
+    ``warmup`` trial (None: none), on ``threads`` numba threads (the thread count is restored). ``profile``: also
+    each trial's 30 costliest functions by cumulative CPU time (cProfile on the CPU clock), text under "profile"."""
+    import numba
+
+    from finkensim.gap.validate import run_case
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    rows = []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if warmup is not None:
+                run_case(*warmup, FLIGHTS, duration, conventions="random")
+            for case, seed in trials:
+                prof = cProfile.Profile(time.process_time) if profile else None
+                t0 = time.process_time()
+                if prof is not None:
+                    prof.enable()
+                row = run_case(case, seed, FLIGHTS, duration, conventions="random")
+                cpu = time.process_time() - t0
+                rows.append(dict(case=case, seed=seed, cpu_s=cpu, correct=bool(row["correct"]),
+                                 effects=list(row["effects"]), threads=threads))
+                if prof is not None:
+                    prof.disable()
+                    text = io.StringIO()
+                    pstats.Stats(prof, stream=text).sort_stats("cumulative").print_stats(30)
+                    rows[-1]["profile"] = text.getvalue()
+                log(f"diagnosis: {case} seed {seed}: {cpu:.1f} s CPU, {'right' if row['correct'] else 'wrong'}")
+    finally:
+        numba.set_num_threads(before)
+    return rows
+
+
+def gap_timing(duration: float = 600.0) -> dict:
+    """Run examples/gap_timing.py in a subprocess: its wall-clock seconds and peak memory (GB), or an error."""
+    out = subprocess.run([sys.executable, str(REPO / "examples" / "gap_timing.py"), "--duration", f"{duration:g}",
+                          "--out", str(REPO / "out" / "bench" / "gap_timing")],
+                         capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    m = re.search(r"([\d.]+) s wall clock, peak resident memory ([\d.]+) GB", out.stdout)
+    if out.returncode != 0 or m is None:
+        return dict(error=(out.stderr.strip().splitlines() or ["no output"])[-1])
+    return dict(duration=duration, seconds=float(m.group(1)), peak_gb=float(m.group(2)))
+
+
+def run(log=print, with_gap_timing: bool = True) -> dict:
+    load0 = os.getloadavg()
+    trials = time_trials(log=log)
+    cpu = [r["cpu_s"] for r in trials]
+    res = dict(trials=trials, median_cpu_s=statistics.median(cpu), cores=os.cpu_count() or 1,
+               matrix_hours=statistics.mean(cpu) * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600)
+    if with_gap_timing:
+        log("diagnosis: examples/gap_timing.py (10 copters x 10 min)")
+        res["gap_timing"] = gap_timing()
+    res["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+    res["markdown"] = markdown(res)
+    return res
+
+
+def markdown(res: dict) -> str:
+    L = ["## Diagnosis", "",
+         f"Validation trials ({FLIGHTS} flights × {DURATION:g} s, random conventions, warm kernels, one numba thread "
+         f"as in `gap-validate --executor process`); CPU seconds per trial (`benchmarks/diagnosis.py`). Load average "
+         f"{' '.join(map(str, res['load'][:3]))} → {' '.join(map(str, res['load'][3:]))}.", "",
+         "| case | seed | CPU s | verdict |", "|---|---:|---:|---|"]
+    for r in res["trials"]:
+        L.append(f"| {r['case']} | {r['seed']} | {r['cpu_s']:.1f} | {'right' if r['correct'] else 'wrong'} |")
+    gt = res.get("gap_timing")
+    L += ["", "| target | measured | met |", "|---|---:|---|",
+          f"| warm validation trial ≤ {TARGET_TRIAL_CPU:g} s of CPU (median) | {res['median_cpu_s']:.1f} s | "
+          f"{'yes' if res['median_cpu_s'] <= TARGET_TRIAL_CPU else '**no**'} |",
+          f"| pairs matrix ({PAIRS_MATRIX_TRIALS} trials) on {res['cores']} cores ≤ {TARGET_MATRIX_HOURS:g} h "
+          f"(mean trial above × trials ÷ cores) | {res['matrix_hours']:.1f} h | "
+          f"{'yes' if res['matrix_hours'] <= TARGET_MATRIX_HOURS else '**no**'} |"]
+    if gt is None:
+        L.append("| examples/gap_timing.py ≤ 5 s | — | not measured |")
+    elif "error" in gt:
+        L.append(f"| examples/gap_timing.py ≤ 5 s | error: {gt['error']} | — |")
+    else:
+        L.append(f"| examples/gap_timing.py (10 copters × {gt['duration']:g} s) ≤ {TARGET_GAP_TIMING:g} s | "
+                 f"{gt['seconds']:.1f} s, peak {gt['peak_gb']:.2f} GB | "
+                 f"{'yes' if gt['seconds'] <= TARGET_GAP_TIMING else '**no**'} |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--no-gap-timing", action="store_true", help="only the validation trials")
+    ap.add_argument("--trials", nargs="+", default=None, metavar="CASE:SEED",
+                    help="time these trials only (the first once more before, as the warm-up), e.g. latency:51")
+    ap.add_argument("--threads", type=int, default=1, help="numba threads of the trials (default 1)")
+    ap.add_argument("--profile", action="store_true", help="with --trials: print where each trial's CPU goes")
+    a = ap.parse_args(argv)
+    log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
+    if a.trials:
+        trials = [(t.rsplit(":", 1)[0], int(t.rsplit(":", 1)[1])) for t in a.trials]
+        for r in time_trials(trials, log=log, warmup=trials[0], threads=a.threads, profile=a.profile):
+            print(f"{r['case']} seed {r['seed']}: {r['cpu_s']:.2f} s CPU on {r['threads']} numba thread(s) "
+                  f"(OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}), "
+                  f"{'right' if r['correct'] else 'wrong'}; load average {os.getloadavg()[0]:.1f}")
+            print(r.get("profile", ""), end="")
+        return 0
+    print(run(log=log, with_gap_timing=not a.no_gap_timing)["markdown"])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,130 @@
+"""One kernel cache for every entry point (finkensim.numba_cache), and the progress bar's compiling notice."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from finkensim.numba_cache import source_hash
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _python(code: str, env_updates: dict, drop=("NUMBA_CACHE_DIR",)) -> dict:
+    """Run ``code`` in a fresh interpreter with the repository first on the path; its last stdout line as JSON."""
+    env = {k: v for k, v in os.environ.items() if k not in drop}
+    env.update(PYTHONPATH=str(ROOT), **env_updates)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_source_hash_follows_every_file(tmp_path):
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    (tmp_path / "notes.txt").write_text("not a source")
+    first = source_hash(tmp_path)
+    assert source_hash(tmp_path) == first
+    (tmp_path / "notes.txt").write_text("changed, still not a source")
+    assert source_hash(tmp_path) == first
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")  # a callee in another module changes
+    assert source_hash(tmp_path) != first
+
+
+_WHERE = ("import json, os, sys; import finkensim; from finkensim.numba_cache import source_hash; "
+          "print(json.dumps(dict(dir=os.environ['NUMBA_CACHE_DIR'], numba='numba' in sys.modules, "
+          "hash=source_hash())))")
+
+
+def test_import_chooses_the_cache_without_importing_numba(tmp_path):
+    got = _python(_WHERE, {"XDG_CACHE_HOME": str(tmp_path)})
+    assert not got["numba"], "import finkensim imported numba"
+    assert got["dir"] == str(tmp_path / "finkensim" / "numba" / got["hash"])
+
+
+def test_the_users_cache_dir_wins(tmp_path):
+    got = _python(_WHERE, {"NUMBA_CACHE_DIR": str(tmp_path / "mine")}, drop=())
+    assert got["dir"] == str(tmp_path / "mine")
+
+
+def test_numba_imported_first_gets_the_cache_too(tmp_path):
+    got = _python("import json, numba; import finkensim; from numba.core import config; "
+                  "print(json.dumps(dict(dir=str(config.CACHE_DIR))))", {"XDG_CACHE_HOME": str(tmp_path)})
+    assert got["dir"].startswith(str(tmp_path / "finkensim" / "numba"))
+
+
+_FIRST_CALL = """
+import json
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+
+def first_call():
+    from finkensim.compiletime import compile_timer
+    from finkensim.kernels.rng import uniforms_array
+    with compile_timer() as jit:
+        uniforms_array(1, 0, 0, 0, 0, 3)
+    return jit.kernels
+
+if __name__ == "__main__":
+    here = first_call()
+    with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
+        worker = pool.submit(first_call).result()
+    print(json.dumps(dict(here=here, worker=worker)))
+"""
+
+
+def test_every_process_loads_what_one_compiled(tmp_path):
+    """A fresh cache: the first process compiles; the next process and a spawned pool worker only load."""
+    script = tmp_path / "first_call.py"
+    script.write_text(_FIRST_CALL)
+    code = f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')"
+    first = _python(code, {"XDG_CACHE_HOME": str(tmp_path / "cache")})
+    assert first["here"] >= 1 and first["worker"] == 0
+    again = _python(code, {"XDG_CACHE_HOME": str(tmp_path / "cache")})
+    assert again == {"here": 0, "worker": 0}
+
+
+class _Bar:
+    """The parts of a tqdm bar that compiling_notice uses."""
+
+    def __init__(self):
+        self.desc, self.shown, self.unpaused = "flight", [], 0
+
+    def set_description_str(self, desc, refresh=True):
+        self.desc = desc
+        self.shown.append(desc)
+
+    def unpause(self):
+        self.unpaused += 1
+
+
+def test_progress_bar_says_compiling_instead_of_an_eta():
+    from numba import njit
+
+    from finkensim.compiletime import COMPILING, compiling_notice
+
+    @njit  # not cached: compiles at its first call
+    def add(a, b):
+        return a + b
+
+    bar = _Bar()
+    with compiling_notice(bar):
+        add(1, 2)
+        add(3, 4)  # compiled already: no notice
+    assert bar.shown == [COMPILING, "flight"] and bar.unpaused == 1
+    assert COMPILING == "compiling (first run only)…"
+
+
+def test_compile_command_runs_its_jobs(capsys):
+    """finkensim compile --gap on one worker process (the suite's cache; compiling in the test process itself would
+    leave freshly compiled LLVM modules that later tests of the process see): one line per job or kernel, exit 0."""
+    from finkensim.cli import main
+
+    assert main(["compile", "--workers", "1", "--gap"]) == 0
+    out = capsys.readouterr().out
+    assert "3 jobs (closed loop, flight log and figures, gap diagnosis)" in out and "kernels compiled in" in out
+    assert main(["compile", "--workers", "-1"]) == 2
+    assert "--workers -1: expected 0 (this process) or a positive number" in capsys.readouterr().err
