@@ -34,6 +34,7 @@ demo: $(DEMO_STAMP)
 # take the cores from the other process (measured on 2 cores: 621 s spinning, 405 s passive, 757 s in one process).
 TEST_WORKERS ?= 2
 test: $(STAMP)
+	$(BIN)/ruff check .
 	OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-passive} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal \
 		tests --nbmake notebooks
 	$(MAKE) docs

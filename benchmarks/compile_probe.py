@@ -22,11 +22,11 @@ def main(argv=None) -> int:
 
     if which == "finken":
         if workloads.swarm_status() is None:
-            import finkensim.swarm  # noqa: F401
+            import finkensim.swarm
         else:
-            import finkensim.sensors.imu  # noqa: F401
-            import finkensim.sensors.ranging  # noqa: F401
-            import finkensim.sensors.ultrasonic  # noqa: F401
+            import finkensim.sensors.imu
+            import finkensim.sensors.ranging
+            import finkensim.sensors.ultrasonic
             import finkensim.world  # noqa: F401
     from finkensim.compiletime import compile_timer
 

@@ -164,13 +164,13 @@ def sonar_grid(pos, vel, yaw, width, length, n_steps, x0, y0, inv_cell, nx, ny, 
 
 
 def _scene(n: int, seed: int = 0):
-    w, l = arena_for(n)
+    w, length = arena_for(n)
     rng = np.random.default_rng(seed)
-    pos = np.stack([rng.uniform(0, w, n), rng.uniform(0, l, n)], -1)
+    pos = np.stack([rng.uniform(0, w, n), rng.uniform(0, length, n)], -1)
     ang = rng.uniform(-np.pi, np.pi, n)
     vel = SPEED * np.stack([np.cos(ang), np.sin(ang)], -1)
     yaw = rng.uniform(-np.pi, np.pi, n)
-    return w, l, pos, vel, yaw
+    return w, length, pos, vel, yaw
 
 
 def _timed(fn, args_of, seconds: float, repeats: int) -> tuple[float, int]:
@@ -203,30 +203,30 @@ def run(quick: bool = False, out_dir: str | Path = "out/bench", log=print, secon
     repeats = repeats or (1 if quick else 7)
     rows = []
     for n in ns:
-        w, l, pos0, vel0, yaw = _scene(n)
-        spec = grid_spec(w, l, CELL)
+        w, length, pos0, vel0, yaw = _scene(n)
+        spec = grid_spec(w, length, CELL)
         g = (spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny)
         # correctness on the same scene: grid == brute force
         cb, ab = np.empty(n, dtype=np.int64), np.empty(n)
         cg, ag = np.empty(n, dtype=np.int64), np.empty(n)
-        pairs_brute(pos0.copy(), vel0.copy(), w, l, RANGE, 1, cb, ab)
-        pairs_grid(pos0.copy(), vel0.copy(), w, l, RANGE, 1, *g, cg, ag)
+        pairs_brute(pos0.copy(), vel0.copy(), w, length, RANGE, 1, cb, ab)
+        pairs_grid(pos0.copy(), vel0.copy(), w, length, RANGE, 1, *g, cg, ag)
         sb, sg = np.empty((n, 4)), np.empty((n, 4))
-        sonar_brute(pos0.copy(), vel0.copy(), yaw, w, l, 1, sb)
-        sonar_grid(pos0.copy(), vel0.copy(), yaw, w, l, 1, *g, sg)
+        sonar_brute(pos0.copy(), vel0.copy(), yaw, w, length, 1, sb)
+        sonar_grid(pos0.copy(), vel0.copy(), yaw, w, length, 1, *g, sg)
         if not (np.array_equal(cb, cg) and np.allclose(ab, ag, rtol=1e-12) and np.array_equal(sb, sg)):
             raise AssertionError(f"cell grid disagrees with brute force at N={n}")
         in_sonar_range = neighbour_counts(pos0[None], SONAR_RANGE + RADIUS, spec)[0]
-        row = dict(N=n, width=w, length=l, cells=spec.n_cells, neighbours_per_copter=float(cb.mean()),
+        row = dict(N=n, width=w, length=length, cells=spec.n_cells, neighbours_per_copter=float(cb.mean()),
                    sonar_candidates_per_copter=float(in_sonar_range.mean()),
                    sonar_echo_fraction=float((sb < SONAR_RANGE).mean()))
         pos, vel = pos0.copy(), vel0.copy()
         cnt, acc, so = np.empty(n, dtype=np.int64), np.empty(n), np.empty((n, 4))
         variants = {
-            "pairs_brute": (pairs_brute, lambda T: (pos, vel, w, l, RANGE, T, cnt, acc)),
-            "pairs_grid": (pairs_grid, lambda T: (pos, vel, w, l, RANGE, T, *g, cnt, acc)),
-            "sonar_brute": (sonar_brute, lambda T: (pos, vel, yaw, w, l, T, so)),
-            "sonar_grid": (sonar_grid, lambda T: (pos, vel, yaw, w, l, T, *g, so)),
+            "pairs_brute": (pairs_brute, lambda T: (pos, vel, w, length, RANGE, T, cnt, acc)),
+            "pairs_grid": (pairs_grid, lambda T: (pos, vel, w, length, RANGE, T, *g, cnt, acc)),
+            "sonar_brute": (sonar_brute, lambda T: (pos, vel, yaw, w, length, T, so)),
+            "sonar_grid": (sonar_grid, lambda T: (pos, vel, yaw, w, length, T, *g, so)),
         }
         for name, (fn, args_of) in variants.items():
             # brute force at large N: a step costs ~N² work; one short call is enough

@@ -20,7 +20,7 @@ import finkensim  # noqa: E402
 
 project = "finkensim"
 author = "the finkensim authors"
-copyright = "the finkensim authors"  # noqa: A001 (Sphinx's name)
+copyright = "the finkensim authors"
 version = release = finkensim.__version__
 
 extensions = [

@@ -192,7 +192,6 @@ def simulate_flight(cfg: Config | str | Path | Mapping[str, Any] | None = None, 
         updates["simulation.n_envs"] = 1
     if updates:
         cfg = cfg.replace(updates)
-    sim = cfg.simulation
     swarm, state0, n_steps = preflight(cfg, ideal=ideal)
     # n_steps + 1 steps record the states at t = 0 .. duration inclusive
     _, rec = swarm.rollout(state0, n_steps + 1, record=flight_record_names(swarm, ideal),

@@ -17,7 +17,7 @@ def test_every_public_name_resolves_and_is_documented(name):
 
 def test_unknown_names_raise_attribute_error():
     with pytest.raises(AttributeError, match="no attribute 'Wrold'"):
-        fs.Wrold  # noqa: B018
+        fs.Wrold
 
 
 def test_import_finkensim_does_not_load_numba():

@@ -59,7 +59,7 @@ LAYERS = [
     ("scenario", "episode", "checks", "viz", "precompile"),
     ("sweep", "gap"),
     ("envs", "tune", "importing", "checkfiles", "datasets", "testing"),  # check reads study files and recordings too
-    ("cli", "cliargs", "precompile_cli"),
+    ("cli", "cliargs", "precompile_cli", "gapvalidate_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}
 

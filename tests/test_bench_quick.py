@@ -161,7 +161,7 @@ def test_breakdown_times_every_kernel_and_reports_against_the_comparison():
                                          steps_per_s_by_threads={"1": 2e5, "2": 3e5}, peak_bytes_per_env=1.0),
                numpy=dict(env_steps_per_s=1e4, copter_steps_per_s=1e5, peak_bytes_per_env=1.0), ratio_numpy=30.0)
     md = report(dict(meta=meta, compare=[cmp], breakdown=dict(r, N=10)))
-    assert "takes 5.00 µs per env-step on one thread" in md and f"3× would allow 15.00 µs" in md
+    assert "takes 5.00 µs per env-step on one thread" in md and "3× would allow 15.00 µs" in md
 
 
 def test_diagnosis_section_reports_trials_and_targets():

@@ -11,7 +11,7 @@ import shutil
 import numpy as np
 import pytest
 
-from finkensim.datasets import LOADERS, DatasetError, data_home, load_miluv, load_murp, load_util
+from finkensim.datasets import LOADERS, DatasetError, data_home, load_murp, load_util
 from finkensim.datasets.files import SHA256
 from finkensim.datasets.record import yaw_from_quaternion
 from finkensim.flightlog import load

@@ -8,7 +8,6 @@ end-to-end test diagnoses a ranging lag that the omnibus test misses.
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest

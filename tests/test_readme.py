@@ -72,9 +72,9 @@ def test_readme_example_runs_as_written(tmp_path, monkeypatch):
             line = python_example().splitlines()[stmt.end_lineno - 1]
             comment = re.search(r"#\s*(\([^)]*\))", line)
             if comment:
-                assert eval(source, namespace) == ast.literal_eval(comment.group(1)), line  # noqa: S307
+                assert eval(source, namespace) == ast.literal_eval(comment.group(1)), line
                 checked += 1
                 continue
-        exec(compile(ast.Module([stmt], []), "README.md", "exec"), namespace)  # noqa: S102
+        exec(compile(ast.Module([stmt], []), "README.md", "exec"), namespace)
     assert checked >= 1
     assert (tmp_path / "flight.npz").is_file()

@@ -118,7 +118,7 @@ def test_killed_study_resumes_without_losing_finished_trials(tmp_path):
             if db.exists():
                 try:
                     done = _complete(db)
-                except Exception:  # the database is being created
+                except Exception:  # noqa: BLE001 (the database is being created)
                     done = {}
         proc.send_signal(signal.SIGKILL)
     finally:

@@ -33,7 +33,7 @@ def load_murp(pair: str = "mean") -> RealDataset:
     """
     import pandas as pd
 
-    valid = ["mean"] + [f"{k}_{l}" for k in range(1, 7) for l in range(1, 7)]
+    valid = ["mean"] + [f"{k}_{m}" for k in range(1, 7) for m in range(1, 7)]
     if pair not in valid:
         raise DatasetError(f"pair = {pair!r}: expected 'mean' or an antenna pair 'k_l' with k, l in 1...6")
     value_col, truth_col = ("r", "r_t") if pair == "mean" else (pair, f"{pair}_t")

@@ -140,7 +140,7 @@ def load(path: str | os.PathLike, validate: bool = True, *, check_units: bool = 
                         f"flight log {str(p)!r}: array {key!r} is an object (pickled) array; expected numbers or str, no pickles"
                     ) from None
                 raise FlightLogError(f"flight log {str(p)!r}: array {key!r} cannot be read ({exc})") from None
-            except Exception as exc:  # corrupt member: zlib / zipfile / format errors
+            except Exception as exc:  # noqa: BLE001 (a corrupt member raises zlib, zipfile or format errors)
                 raise FlightLogError(f"flight log {str(p)!r}: array {key!r} cannot be read ({type(exc).__name__}: {exc})") from None
 
     try:

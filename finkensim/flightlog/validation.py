@@ -146,8 +146,8 @@ def _meta_number(meta: Mapping, key: str, *, positive: bool) -> float | None:
 
 def _pose_hint(x, y, width, length, r) -> str:
     """Why poses might be outside the arena: units, a centred origin, swapped axes."""
-    def fits(xs, ys, w, l):
-        return bool(np.all((xs >= -r) & (xs <= w + r) & (ys >= -r) & (ys <= l + r)))
+    def fits(xs, ys, w, length):
+        return bool(np.all((xs >= -r) & (xs <= w + r) & (ys >= -r) & (ys <= length + r)))
 
     big = np.max(np.abs(x)) > POSE_SCALE_FACTOR * width or np.max(np.abs(y)) > POSE_SCALE_FACTOR * length
     if big and fits(x / 100, y / 100, width, length):

@@ -242,7 +242,7 @@ def write_figures(report: GapReport, out: Path) -> dict[str, Path]:
     if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
         try:
             matplotlib.use("Agg")
-        except Exception:  # pragma: no cover
+        except Exception:  # noqa: BLE001 (pragma: no cover; a headless backend is best effort)
             pass
     import matplotlib.pyplot as plt
 

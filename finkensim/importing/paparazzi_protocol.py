@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..usertext import strip_bom, suggest
-from .recording import IMU_CHANNELS, RecordingError, parse_channel
+from .recording import RecordingError, parse_channel
 
 __all__ = ["Field", "Message", "Protocol", "read_protocol", "read_text", "ChannelEntry", "PaparazziMap", "read_map",
            "DEFAULT_MAP", "ANALYSIS_CHANNELS", "UNITS", "check_map_against"]

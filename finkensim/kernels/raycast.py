@@ -187,9 +187,9 @@ def _band_cells(ray, wall, t_end, eps):
     ox, oy, dx, dy, inv_dx, inv_dy = ray
     n, ci, sign, origin, inv_pitch, lo, hi = wall
     if ci == 1:
-        oc, dc, ou, du, inv = oy, dy, ox, dx, inv_dy
+        oc, _, ou, du, inv = oy, dy, ox, dx, inv_dy
     else:
-        oc, dc, ou, du, inv = ox, dx, oy, dy, inv_dx
+        oc, _, ou, du, inv = ox, dx, oy, dy, inv_dx
     if inv == 0.0:  # parallel to the wall (or |d| < 1e-200: moves < eps along the normal before t_end)
         if oc < lo - eps or oc > hi + eps:
             return 0, -1

@@ -15,7 +15,7 @@ import numpy as np
 
 from numba import njit
 
-from ..arena import WallGeometry, wall_geometry  # noqa: F401  (the sonar kernels' view of the arena)
+from ..arena import WallGeometry, wall_geometry
 from ..config import Config, ConfigError, SonarConfig
 
 __all__ = [

@@ -40,7 +40,7 @@ def _limit_threads() -> None:
             import numba
 
             numba.set_num_threads(1)
-        except Exception:  # pragma: no cover - best effort
+        except Exception:  # noqa: BLE001 (pragma: no cover; limiting threads is best effort)
             pass
         _THREADS_LIMITED = True
 
@@ -127,7 +127,7 @@ def execute(task: Mapping[str, Any]) -> dict[str, Any]:
             raise KeyError(f"the runner returned no value for metric(s) {', '.join(missing)}")
         out.update({m: float(values[m]) for m in names})
         out["status"], out["error"] = "ok", ""
-    except Exception as exc:  # a failing run is a result, not a crash of the sweep
+    except Exception as exc:  # noqa: BLE001 (a failing run is a result, not a crash of the sweep)
         out.update({m: math.nan for m in names})
         out["status"], out["error"] = "error", f"{type(exc).__name__}: {exc}"
     out["elapsed"] = time.perf_counter() - t0
@@ -264,7 +264,7 @@ def run_dask(tasks: list[dict], workers: int, client) -> Iterator[dict]:
             else:
                 try:
                     exc = fut.exception()
-                except Exception as e:  # pragma: no cover - cancelled futures
+                except Exception as e:  # noqa: BLE001 (pragma: no cover; a cancelled future raises anything)
                     exc = e
                 yield _lost(task, exc)
             fill()

@@ -51,7 +51,7 @@ def read_parts(parts: Path, sweep: Sweep, schema) -> dict[int, dict]:
             row = table.to_pylist()[0]
             if row["run_id"] != run_id or run_id >= sweep.n_runs or table.schema.names != schema.names:
                 raise ValueError("it does not belong to this sweep")
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 (any unreadable part is run again, never trusted)
             warnings.warn(f"ignoring {path} ({exc}); its run will be run again", RuntimeWarning, stacklevel=3)
             continue
         rows[run_id] = row
