@@ -71,7 +71,12 @@ def format_bytes(n: float) -> str:
 
 
 def _steps(duration: float, dt: float) -> float:
-    return math.floor(duration / dt + 0.5) + 1.0
+    """Samples of a flight of ``duration`` s at ``dt`` s per step (a ConfigError when no number holds them)."""
+    q = duration / dt + 0.5
+    if not math.isfinite(q):
+        raise ConfigError(f"simulation.duration / simulation.dt = {duration!r} s / {dt!r} s: more steps than a number "
+                          "holds; expected a longer dt or a shorter duration")
+    return math.floor(q) + 1.0
 
 
 def flight_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1, ideal: bool = True) -> dict[str, float]:

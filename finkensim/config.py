@@ -168,7 +168,7 @@ class RangingConfig(_Section):
 
     _section = "ranging"
     enabled: bool = _f(True)
-    max_range: float = _f(2.5, "m", 0.0, 1000.0, lo_open=True, doc="beyond this, reads exactly max_range without error")
+    max_range: float = _f(2.5, "m", 0.01, 1000.0, doc="beyond this, reads exactly max_range without error")
     error: str = _f("mixture", choices=("mixture", "seed", "gaussian", "none"),
                     doc="mixture: correct conditional GMM draw; seed: the script's weighted sum")
     sigma: float = _f(0.1, "m", 0.0, 10.0, doc="standard deviation for error = 'gaussian'")
@@ -286,6 +286,7 @@ class Config:
         if sections:
             raise ConfigError(f"unknown config sections: {', '.join(sections)}")
         _check_room(built["copters"], built["arena"])
+        _check_imu_noise(built["imu"], built["simulation"])
         object.__setattr__(self, "_sections", built)
 
     def __getattr__(self, name):
@@ -361,6 +362,23 @@ def _check_room(copters, arena) -> None:
             f"copters.n = {copters.n}: {copters.n} copters of copters.radius = {copters.radius} m cover "
             f"{copters.n * body:.3g} m^2, more than the {arena.width} x {arena.length} m arena holds even packed "
             f"hexagonally ({room:.3g} m^2); expected copters.n <= {int(room / body)}, a larger arena or a smaller radius")
+
+
+#: largest white-noise std of one accelerometer sample (m/s^2): a flight-log loader reads a median |imu_acc| above
+#: 50 as cm/s^2 (finkensim.flightlog.validation), and no accelerometer is that noisy
+MAX_ACC_SAMPLE_NOISE = 20.0
+
+
+def _check_imu_noise(imu, simulation) -> None:
+    """Raise if the accelerometer's white noise per sample (``acc_noise_density`` / √dt) exceeds
+    :data:`MAX_ACC_SAMPLE_NOISE`: the flight's own log would then look like cm/s^2 to every loader."""
+    per_sample = imu.acc_noise_density / math.sqrt(simulation.dt)
+    if per_sample > MAX_ACC_SAMPLE_NOISE:
+        raise ConfigError(
+            f"imu.acc_noise_density = {imu.acc_noise_density} m/s^2/sqrt(Hz) at simulation.dt = {simulation.dt} s is "
+            f"{per_sample:.3g} m/s^2 of white noise per sample: expected at most {MAX_ACC_SAMPLE_NOISE} m/s^2, i.e. "
+            f"imu.acc_noise_density <= {MAX_ACC_SAMPLE_NOISE * math.sqrt(simulation.dt):.3g} (larger readings look "
+            "like cm/s^2 to every flight-log loader)")
 
 
 def check_key(section: str, key: str | None = None) -> None:

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from finkensim.checkfiles import check_file
 from finkensim.config import SECTIONS, Config, load_config
-from finkensim.flightlog import FlightLogError, load, save, validate
+from finkensim.flightlog import load, save, validate
 from finkensim.testing import (assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible)
 from finkensim.testing import strategies as fst
 from finkensim.testing.profiles import PROFILE_ENV, THOROUGH_FACTOR, current_profile, examples, load_profile
@@ -311,12 +311,11 @@ def test_import_needs_neither_pytest_nor_hypothesis_until_strategies_are_used():
 
 
 # ------------------------------------------------------------------------------------------ found by the strategies
-# Valid configs the package mishandles (docs/testing.md, "Found by these strategies"). Strict xfails: once fixed
-# where they live, these pass, fail as XPASS, and should become plain tests of the clear error or of the fix.
+# Valid configs the package once mishandled (docs/testing.md, "Found by these strategies"), now named errors or fixed.
 
 
-@pytest.mark.xfail(strict=True, raises=IndexError, reason="subnormal ranging.max_range breaks the ranging table build")
 def test_found_a_subnormal_ranging_range_gives_a_clear_error():
+    """ranging.max_range = 5e-324 passed the config and broke the ranging table build (IndexError)."""
     from finkensim.config import ConfigError
     from finkensim.swarm import SwarmSim
 
@@ -324,8 +323,8 @@ def test_found_a_subnormal_ranging_range_gives_a_clear_error():
         SwarmSim(Config().replace({"ranging.max_range": 5e-324}))
 
 
-@pytest.mark.xfail(strict=True, raises=OverflowError, reason="duration / dt beyond the float range overflows")
 def test_found_an_overflowing_step_count_gives_a_clear_error():
+    """duration / dt beyond the float range overflowed the memory estimate (OverflowError)."""
     from finkensim.budget import flight_arrays
     from finkensim.config import ConfigError
 
@@ -333,10 +332,15 @@ def test_found_an_overflowing_step_count_gives_a_clear_error():
         flight_arrays(Config().replace({"simulation.dt": 1e-308, "simulation.duration": 1e6}))
 
 
-@pytest.mark.xfail(strict=True, raises=FlightLogError, reason="IMU noise the config allows reads as cm/s^2 in the log")
-def test_found_a_flight_with_allowed_imu_noise_passes_the_loader():
+def test_found_imu_noise_that_reads_as_cm_is_refused_and_the_largest_allowed_passes_the_loader():
+    """imu.acc_noise_density = 60 at dt = 0.125 s made simulate_flight refuse its own log (it read as cm/s^2): the
+    config refuses it, and a flight at the largest per-sample noise it allows passes the loader."""
+    from finkensim.config import MAX_ACC_SAMPLE_NOISE, ConfigError
     from finkensim.scenario import simulate_flight
 
-    cfg = Config().replace({"copters.n": 1, "imu.acc_noise_density": 60.0, "simulation.dt": 0.125})
+    with pytest.raises(ConfigError, match="imu.acc_noise_density = 60"):
+        Config().replace({"copters.n": 1, "imu.acc_noise_density": 60.0, "simulation.dt": 0.125})
+    cfg = Config().replace({"copters.n": 1, "simulation.dt": 0.125,
+                            "imu.acc_noise_density": MAX_ACC_SAMPLE_NOISE * 0.125 ** 0.5})
     log, _, _ = simulate_flight(cfg, duration=2.0, seed=0)
     assert_flightlog_valid(log)

@@ -32,7 +32,10 @@ def test_coefficients_are_the_chebyshev_fit_of_sin_x_over_x():
     for c in power:                                  # substitute s(t)
         acc = P.polyadd(acc, c * coeffs)
         coeffs = P.polymul(coeffs, lin)
-    np.testing.assert_allclose(SIN_COEFFS, acc, rtol=1e-9, atol=1e-18)
+    # the fit is the same function to rounding (values ~1: within 10 ulp on the grid; 4 measured), while its highest power-basis
+    # coefficients depend on the LAPACK build at 2e-4 relative (numpy 2.4.6 here: 1.9e-4), being ill-conditioned
+    np.testing.assert_allclose(P.polyval(t, SIN_COEFFS), P.polyval(t, acc), rtol=0, atol=2.2e-15)
+    np.testing.assert_allclose(SIN_COEFFS, acc, rtol=1e-3, atol=0)
 
 
 def test_error_bound_on_the_whole_domain():

@@ -46,7 +46,9 @@ ACC_MM_ABOVE = 500.0         # ... > 500: mm/s^2
 T_MS_STEP_ABOVE = 5.0        # median sample step > 5 "s" (that is plausible / 1000): t in ms ...
 T_MS_STEP_FROM = 0.5         # ... and a step >= 0.5 "s" (the importer's threshold) over a flight longer than
 T_MS_SPAN_ABOVE = 3600.0     # one hour (no battery flies that long; a 200 Hz tracker in ms spans 1000 "s" in 5 s)
-YAW_DEG_RATE_ABOVE = 20.0    # pose yaw beyond 2 pi turning faster than 20 "rad"/s (90th percentile): degrees
+YAW_DEG_RATE_ABOVE = 20.0    # pose yaw beyond 2 pi turning faster than 20 "rad"/s (90th percentile): degrees ...
+YAW_DEG_MEDIAN_ABOVE = 6 * math.pi  # ... or a median |yaw| beyond three turns (radians a tracker accumulated over
+                                    # a turn or two, or a constant offset of a few rad, pass)
 POSE_SCALE_FACTOR = 10.0     # poses > 10x the arena that fit it after /100 (/1000): cm (mm)
 SCALAR_LIMITS = {            # scalar lengths above these limits (m) look like cm or mm
     "ultrasonic_offset": 1.0,
@@ -195,9 +197,9 @@ def validate(log: FlightLog, *, check_units: bool = True) -> None:
 
     * ``t`` also: a median step >= 0.5 s over a span above one hour looks like milliseconds (a 200 Hz
       tracker in ms has steps of 5 "s"; no copter flies an hour).
-    * ``pose`` yaw: beyond 2 pi in magnitude and either mostly beyond it or turning faster than
-      20 per second at the 90th percentile looks like degrees (wrap jumps of 2 pi or 360 are not turns);
-      unwrapped radians over a few slow turns pass. ``imu_gyro`` is not unit-checked.
+    * ``pose`` yaw: beyond 2 pi in magnitude and either with a median magnitude beyond 6 pi (three turns) or
+      turning faster than 20 per second at the 90th percentile looks like degrees (wrap jumps of 2 pi or 360 are
+      not turns); unwrapped radians over a few slow turns, or offset by a few rad, pass. ``imu_gyro`` is not unit-checked.
     """
     if not isinstance(log, FlightLog):
         raise FlightLogError(f"expected a FlightLog, got {type(log).__name__}")
@@ -479,7 +481,7 @@ def _check_yaw_degrees(yaw: np.ndarray, t: np.ndarray, ids: np.ndarray) -> None:
     rate = (d / dt)[turn]
     p90 = float(np.quantile(rate, 0.9)) if rate.size else 0.0
     med = float(np.median(np.abs(yaw)))
-    if med > 2 * math.pi or p90 > YAW_DEG_RATE_ABOVE:
+    if med > YAW_DEG_MEDIAN_ABOVE or p90 > YAW_DEG_RATE_ABOVE:
         c = int(np.argmax(np.max(np.abs(yaw), axis=0)))
         raise FlightLogError(
             f"pose yaw reaches {fmt(top)} (copter {str(ids[c])!r}; median |yaw| {fmt(med)}, 90th-percentile turn "

@@ -230,7 +230,9 @@ def dask_client(workers: int, scheduler: str | None):
             raise SweepError(f"cannot connect to the Dask scheduler at {scheduler!r}: {exc}") from None
     import os
 
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+    # a random port for the scheduler's HTTP server: with None it still takes 8787 when free, and a second sweep (or
+    # any other Dask cluster) then printed "Port 8787 is already in use" as a warning line
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=logging.ERROR)
     client = Client(cluster)
     client.run(quiet_worker, os.getpid())  # local workers are children of this process: end with it, no Ctrl-C

@@ -169,7 +169,7 @@ def _combine(draw, d: _Draft, max_flight_bytes: float) -> None:
     """Make the drawn keys a combination ``finkensim run`` accepts (the cross-key checks of config.py,
     World.init, SonarModel and SwarmSim), changing only keys that were not fixed; shrinks with the draws."""
     from ..budget import flight_arrays
-    from ..config import PACKING_DENSITY, config_from_dict
+    from ..config import MAX_ACC_SAMPLE_NOISE, PACKING_DENSITY, config_from_dict
 
     if d.get("walls.plate_length") > d.get("walls.hinge_height"):
         target = "walls.plate_length" if d.settable("walls.plate_length") else "walls.hinge_height"
@@ -188,6 +188,14 @@ def _combine(draw, d: _Draft, max_flight_bytes: float) -> None:
         for sensor in sensors:
             _require(d, "behaviour.wall_check", mode, f"{sensor}.enabled", "the wall check compares sensors")
     dt, duration = d.get("simulation.dt"), d.get("simulation.duration")
+    noise_cap = MAX_ACC_SAMPLE_NOISE * math.sqrt(dt)  # config.py: white accelerometer noise per sample
+    if d.get("imu.acc_noise_density") > noise_cap:
+        target = "imu.acc_noise_density" if d.settable("imu.acc_noise_density") else "simulation.dt"
+        if target == "imu.acc_noise_density":
+            d.set(target, noise_cap)
+        else:
+            dt = (d.get("imu.acc_noise_density") / MAX_ACC_SAMPLE_NOISE) ** 2
+            d.set("simulation.dt", dt)
     if duration < dt and d.settable("simulation.duration"):
         d.set("simulation.duration", dt)
     if duration / dt > _MAX_STEPS and d.settable("simulation.duration"):  # (also overflows budget.flight_arrays)
