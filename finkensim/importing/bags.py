@@ -171,6 +171,21 @@ def _present_topics_error(source, wanted, present):
                              f"it has {', '.join(sorted(present)) or 'no topics'}")
 
 
+def _open_rosbag(p: Path, source: str, kind: str):
+    """An opened rosbags ``AnyReader`` of the ROS 1 / ROS 2 bag ``p`` (close it); a RecordingError naming ``source``
+    when it cannot be read, an ImportError naming the extra when rosbags is missing."""
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError as exc:
+        raise ImportError(f"{_EXTRA} ({exc})") from None
+    try:
+        reader = AnyReader([p], default_typestore=_typestore())
+        reader.open()
+    except Exception as exc:  # noqa: BLE001 - rosbags raises its own error types for unreadable bags
+        raise RecordingError(f"{source}: cannot be read as a {kind} ({type(exc).__name__}: {exc})") from None
+    return reader
+
+
 def read_bag(path, topics) -> Recording:
     """The :class:`~.recording.Recording` of the topics named in ``topics`` (a topics TOML path/text, dict or
     :class:`~.topics.TopicsSpec`) in the ROS 1 / ROS 2 bag or MCAP file at ``path`` (module doc)."""
@@ -185,15 +200,7 @@ def read_bag(path, topics) -> Recording:
     if kind == "mcap":
         _read_mcap(p, wanted, col, source)
     else:
-        try:
-            from rosbags.highlevel import AnyReader
-        except ImportError as exc:
-            raise ImportError(f"{_EXTRA} ({exc})") from None
-        try:
-            reader = AnyReader([p], default_typestore=_typestore())
-            reader.open()
-        except Exception as exc:  # noqa: BLE001 - rosbags raises its own error types for unreadable bags
-            raise RecordingError(f"{source}: cannot be read as a {kind} ({type(exc).__name__}: {exc})") from None
+        reader = _open_rosbag(p, source, kind)
         try:
             present = {c.topic: c.msgtype for c in reader.connections}
             _present_topics_error(source, wanted, present)
@@ -232,13 +239,7 @@ def list_topics(path) -> dict[str, int]:
                 raise RecordingError(f"{source}: the MCAP file has no summary (truncated?); re-record or repair it")
             counts = summary.statistics.channel_message_counts if summary.statistics else {}
             return {c.topic: int(counts.get(cid, 0)) for cid, c in summary.channels.items()}
-    from rosbags.highlevel import AnyReader
-
-    try:
-        reader = AnyReader([p], default_typestore=_typestore())
-        reader.open()
-    except Exception as exc:  # noqa: BLE001 - rosbags raises its own error types for unreadable bags
-        raise RecordingError(f"{source}: cannot be read as a {kind} ({type(exc).__name__}: {exc})") from None
+    reader = _open_rosbag(p, source, kind)
     try:
         out: dict[str, int] = {}
         for c in reader.connections:

@@ -2,6 +2,8 @@
 write the results table, the summary and its plot."""
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
 import sys
 import warnings
@@ -120,13 +122,17 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
                 if n_failed:
                     bar.set_postfix(failed=n_failed, refresh=False)
     finally:
-        close = getattr(results, "close", None)
-        if close is not None:
-            close()  # shuts a process pool down, cancels pending Dask futures
-        if dask:
-            dask[0].close()
-            if dask[1] is not None:
-                dask[1].close()
+        # tearing a local Dask cluster down while futures are cancelled (Ctrl-C, SIGTERM) logs scheduler errors about
+        # keys it can no longer gather: noise at that point (every finished run is kept), silenced for the teardown
+        quiet = _quiet_logger("distributed") if dask else contextlib.nullcontext()
+        with quiet:
+            close = getattr(results, "close", None)
+            if close is not None:
+                close()  # shuts a process pool down, cancels pending Dask futures
+            if dask:
+                dask[0].close()
+                if dask[1] is not None:
+                    dask[1].close()
 
     table = pa.Table.from_pylist([rows[k] for k in sorted(rows)], schema=schema)
     df = table.to_pandas()
@@ -136,3 +142,15 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
     df.attrs["failed"] = [int(i) for i in df.loc[df["status"] != "ok", "run_id"]]
     df.attrs["out"] = str(out_dir) if out_dir is not None else None
     return df
+
+
+@contextlib.contextmanager
+def _quiet_logger(name: str):
+    """Within the block, the logger ``name`` passes only CRITICAL records (its level is restored after)."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
