@@ -97,10 +97,11 @@ def flight_logs(draw, *, n_steps=(1, 8), n_copters=(1, 4), sensors: Iterable[str
     pose = np.empty((T, N, 3))
     pose[..., 0] = width * _floats(draw, (T, N), 0.0, 1.0)
     pose[..., 1] = length * _floats(draw, (T, N), 0.0, 1.0)
-    if conventions:  # unwrapped heading: a start within two turns plus turns of up to 10 rad/s (a copter's)
+    if conventions:  # unwrapped heading: a start within 1.5 turns, then turns of up to 10 rad/s and one turn in all
         step = np.diff(t, prepend=t[0])[:, None]
-        pose[..., 2] = np.cumsum(_floats(draw, (T, N), -10.0, 10.0) * step, axis=0) \
-            + _floats(draw, (1, N), -4 * math.pi, 4 * math.pi)
+        rate = min(10.0, 2 * math.pi / max(float(t[-1] - t[0]), 1e-9))  # (the loader reads > 3 turns as degrees)
+        pose[..., 2] = np.cumsum(_floats(draw, (T, N), -rate, rate) * step, axis=0) \
+            + _floats(draw, (1, N), -3 * math.pi, 3 * math.pi)
     else:
         pose[..., 2] = _floats(draw, (T, N), -math.pi, math.pi)
     radius = draw(st.floats(0.01, 0.5)) if conventions else DEFAULT_COPTER_RADIUS
