@@ -373,7 +373,7 @@ def _check_imu_noise(imu, simulation) -> None:
     """Raise if the accelerometer's white noise per sample (``acc_noise_density`` / √dt) exceeds
     :data:`MAX_ACC_SAMPLE_NOISE`: the flight's own log would then look like cm/s^2 to every loader."""
     per_sample = imu.acc_noise_density / math.sqrt(simulation.dt)
-    if per_sample > MAX_ACC_SAMPLE_NOISE:
+    if imu.acc_noise_density > MAX_ACC_SAMPLE_NOISE * math.sqrt(simulation.dt):  # the cap itself passes, unrounded
         raise ConfigError(
             f"imu.acc_noise_density = {imu.acc_noise_density} m/s^2/sqrt(Hz) at simulation.dt = {simulation.dt} s is "
             f"{per_sample:.3g} m/s^2 of white noise per sample: expected at most {MAX_ACC_SAMPLE_NOISE} m/s^2, i.e. "
