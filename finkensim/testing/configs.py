@@ -29,6 +29,8 @@ SCENARIO_BOUNDS: dict[str, tuple[float, float]] = {
     "arena.width": (0.5, 8.0), "arena.length": (0.5, 8.0),
     "walls.n_segments": (1, 20), "walls.substeps": (1, 20),
     "copters.n": (1, 6),
+    # a copter accelerating at tens of m/s^2 logs accelerations the flight-log loader reads as cm/s^2 (median > 50)
+    "copters.max_accel": (0.01, 20.0),
     "simulation.dt": (0.01, 0.2), "simulation.n_envs": (1, 3),
     "behaviour.redraw_steps": (1, 50),
     "sonar.beam_rays": (1, 9), "sonar.n_slots": (1, 8), "ranging.max_range": (0.1, 10.0),
