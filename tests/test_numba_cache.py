@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from finkensim.numba_cache import source_hash
+from finkensim.numba_cache import HASH_CHARS, prune, source_hash
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,6 +32,22 @@ def test_source_hash_follows_every_file(tmp_path):
     assert source_hash(tmp_path) == first
     (tmp_path / "sub" / "b.py").write_text("y = 3\n")  # a callee in another module changes
     assert source_hash(tmp_path) != first
+
+
+def test_prune_deletes_only_stale_version_directories(tmp_path):
+    day = 86400.0
+    now = 1_000 * day
+    keep, fresh, stale = (tmp_path / (c * HASH_CHARS) for c in "abc")
+    other = tmp_path / "not-a-version"  # a name that is no source hash: never touched
+    for path in (fresh, stale, other):
+        path.mkdir()
+        (path / "kernel.nbi").write_text("x")
+    os.utime(fresh, (now - 29 * day, now - 29 * day))
+    os.utime(stale, (now - 31 * day, now - 31 * day))
+    os.utime(other, (now - 99 * day, now - 99 * day))
+    assert prune(keep, max_age_days=30, now=now) == [stale]
+    assert keep.is_dir() and keep.stat().st_mtime == now  # chosen = marked used
+    assert fresh.is_dir() and other.is_dir() and not stale.exists()
 
 
 _WHERE = ("import json, os, sys; import finkensim; from finkensim.numba_cache import source_hash; "
