@@ -1,4 +1,6 @@
 """Suite-wide checks, and the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md)."""
+import os
+
 import numba
 import pytest
 
@@ -17,6 +19,18 @@ def _numba_threads_restored():
     if after != before:
         numba.set_num_threads(before)
         pytest.fail(f"the test left numba's thread count at {after} (it was {before}); restore it in a finally block")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under ``NUMBA_DISABLE_JIT=1`` (``make coverage``) skip the tests marked ``jit_only``: they feed the counter-based
+    generator negative or 64-bit indices, which numba wraps to uint64 and plain Python refuses (the engine's indices
+    are never negative, so its flights are the same either way: tests/test_nojit.py)."""
+    if os.environ.get("NUMBA_DISABLE_JIT") != "1":
+        return
+    skip = pytest.mark.skip(reason="needs numba's uint64 wrap-around (NUMBA_DISABLE_JIT=1)")
+    for item in items:
+        if "jit_only" in item.keywords:
+            item.add_marker(skip)
 
 
 def pytest_terminal_summary(terminalreporter):

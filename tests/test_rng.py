@@ -43,18 +43,21 @@ def _inverse_mix64(z: int) -> int:
 
 # --------------------------------------------------------------------------- numba == naive
 
+@pytest.mark.jit_only
 @settings(max_examples=200, deadline=None)
 @given(SEED, I64, I64, I64, I64)
 def test_counter_key_matches_naive(seed, env, step, copter, stream):
     assert np.uint64(rng.counter_key(seed, env, step, copter, stream)) == naive.counter_key(seed, env, step, copter, stream)
 
 
+@pytest.mark.jit_only
 @settings(max_examples=200, deadline=None)
 @given(U64, I64)
 def test_uniform_matches_naive(key, index):
     assert rng.uniform(np.uint64(key), index) == naive.uniform(np.uint64(key), index)
 
 
+@pytest.mark.jit_only
 @settings(max_examples=200, deadline=None)
 @given(U64, st.integers(-(2**62), 2**62 - 1))
 def test_normal_matches_naive(key, index):
@@ -64,6 +67,7 @@ def test_normal_matches_naive(key, index):
                                rtol=1e-13, atol=NORMAL_ATOL)
 
 
+@pytest.mark.jit_only
 @settings(max_examples=50, deadline=None)
 @given(SEED, SMALL, SMALL, SMALL, SMALL, st.integers(0, 64))
 def test_arrays_match_naive(seed, env, step, copter, stream, n):
@@ -93,6 +97,7 @@ def test_uniform_is_the_splitmix64_stream_of_its_key():
         assert rng.uniform(np.uint64(1234567), i) == ((want >> 12) + 0.5) * 2.0**-52
 
 
+@pytest.mark.jit_only
 def test_known_values_are_stable():
     """Pin a few outputs: changing the generator changes every seeded result downstream."""
     assert rng.counter_key(0, 1, 2, 3, 4) == 472297383753096155
@@ -101,6 +106,7 @@ def test_known_values_are_stable():
 
 # --------------------------------------------------------------------------- range
 
+@pytest.mark.jit_only
 @settings(max_examples=300, deadline=None)
 @given(U64, I64)
 def test_uniform_in_open_unit_interval(key, index):
@@ -165,7 +171,8 @@ def _first_uniforms(seed, env, step, copter, stream, n=2):
                      for e, s, c, k in zip(env, step, copter, stream)])
 
 
-@pytest.mark.parametrize("axis", ["env", "step", "copter", "stream", "seed", "index"])
+@pytest.mark.parametrize("axis", [pytest.param(a, marks=pytest.mark.jit_only) for a in ("env", "step", "copter", "stream")]
+                         + ["seed", "index"])
 def test_neighbouring_cells_are_uncorrelated(axis):
     """Cells that differ by one in a single index give uncorrelated draws (|r| < 5/sqrt(n))."""
     n = 5000
