@@ -12,7 +12,7 @@ follows from numba's lazy compilation.
 The jobs:
 
 * ``closed loop``: one step of :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` as
-  :func:`~finkensim.scenario.simulate_flight` records it (the compiled engine ``swarm_env`` and its callees, the
+  :func:`~finkensim.scenario.simulate_flight` records it (the compiled engine ``swarm_env_<behaviour>`` and its callees, the
   initial placement);
 * ``flight log and figures``: :func:`~finkensim.scenario.flight_log` with the error-free values and the wall figure of
   ``finkensim run`` on a two-sample record of zeros (the ideal ranging table and readings, the plate distances).

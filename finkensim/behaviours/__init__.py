@@ -42,3 +42,7 @@ slower than the built-in ones but fine for a few environments. To run it in a Mo
 live in an importable module, in a notebook use ``executor="serial"``
 (``notebooks/03_swarm_and_sweeps.ipynb`` does exactly that).
 """
+from .registry import BEHAVIOURS, Behaviour, BehaviourInput, NoParams, get_behaviour, register_behaviour
+from . import builtin  # noqa: F401 — importing it registers the built-ins
+
+__all__ = ["BEHAVIOURS", "Behaviour", "BehaviourInput", "NoParams", "get_behaviour", "register_behaviour"]

@@ -68,9 +68,7 @@ from __future__ import annotations
 from ..sensors.ranging_kernels import ranging_batch, ranging_env
 from .kernel import swarm_rollout
 from .sim import SwarmSim, check_behaviour_sensors, needs_sensors
-from .state import KIND_ATTRACTION, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SensorReadings, \
-    SwarmRecord, SwarmState
+from .state import RECORDABLE, Models, SensorReadings, SwarmRecord, SwarmState
 
-__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "needs_sensors",
-           "check_behaviour_sensors", "ranging_env",
-           "ranging_batch", "swarm_rollout", "KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON"]
+__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "Models", "needs_sensors",
+           "check_behaviour_sensors", "ranging_env", "ranging_batch", "swarm_rollout"]

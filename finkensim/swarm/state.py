@@ -13,15 +13,8 @@ import numpy as np
 from ..behaviours.wall_check import BehaviourState
 from ..world import WorldState
 
-__all__ = ["KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON", "KIND_CODES", "RECORDABLE",
-           "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "MemoryArrays", "RunSpec", "NO_RANGING_ROWS", "Recording"]
-
-KIND_HOVER = 0
-KIND_RANDOM_WALK = 1
-KIND_ATTRACTION = 2
-KIND_PYTHON = 3
-#: ``behaviour.kind`` → code of the built-in behaviours compiled into the loop.
-KIND_CODES = {"hover": KIND_HOVER, "random_walk": KIND_RANDOM_WALK, "attraction_repulsion": KIND_ATTRACTION}
+__all__ = ["RECORDABLE", "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "MemoryArrays", "RunSpec",
+           "NO_RANGING_ROWS", "Recording", "Models"]
 
 #: Arrays :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` can record per step, with their
 #: shapes. Sensor arrays exist only when their sensor is enabled.
@@ -103,7 +96,7 @@ class SwarmState:
         """The IMU bias and behaviour memory as a :class:`MemoryArrays` record (the same arrays)."""
         m = self.behaviour
         return MemoryArrays(self.imu_bias, m.fail_count, m.wall, m.anchor, m.dr_pos, m.dr_vel, m.dr_yaw,
-                            m.wall_onsets, m.wall_readings, m.sonar_held)
+                            m.wall_onsets, m.wall_readings, m.sonar_held, m.commands)
 
 
 @dataclass(frozen=True)
@@ -146,7 +139,8 @@ class MemoryArrays(NamedTuple):
     """The sensors' and behaviours' memory as one flat record for the kernels (views of a
     :class:`SwarmState`): bias (B, N, 3) IMU bias; fail_count (B, N, 4) int64; wall (B, N, 4) bool;
     anchor (B, N, 4, 3); dr_pos (B, N, 2) m; dr_vel (B, N, 2) m/s; dr_yaw (B, N) rad; wall_onsets,
-    wall_readings (B, N) int64; sonar_held (B, N, 4) m (see :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
+    wall_readings (B, N) int64; sonar_held (B, N, 4) m; commands (B, N, W): the behaviour's own memory (see
+    :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
 
     bias: np.ndarray
     fail_count: np.ndarray
@@ -158,6 +152,7 @@ class MemoryArrays(NamedTuple):
     wall_onsets: np.ndarray
     wall_readings: np.ndarray
     sonar_held: np.ndarray
+    commands: np.ndarray
 
 
 #: RunSpec.ranging_rows of a kernel that takes no rows from it
@@ -166,7 +161,7 @@ NO_RANGING_ROWS = np.empty((0, 0, 0))
 
 class RunSpec(NamedTuple):
     """What a compiled rollout runs: seed, env_ids (B,) int64 global environment indices, step0 (the
-    state's step), n_steps, kind (``KIND_*``), dt s, which sensors run (sonar, down, ranging, imu), and
+    state's step), n_steps, dt s, which sensors run (sonar, down, ranging, imu), and
     ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
     reads is written in it first; (0, 0, 0) where the kernel takes no rows from it)."""
 
@@ -174,7 +169,6 @@ class RunSpec(NamedTuple):
     env_ids: np.ndarray
     step0: int
     n_steps: int
-    kind: int
     dt: float
     do_sonar: bool
     do_down: bool
@@ -202,3 +196,23 @@ class Recording(NamedTuple):
     wall: np.ndarray
     cmd_vel: np.ndarray
     cmd_yaw_rate: np.ndarray
+
+
+class Models(NamedTuple):
+    """Every model the engine's kernels read, as one record (static during a rollout).
+
+    copter (:class:`~finkensim.copters.CopterParams`), hinge (:class:`~finkensim.arena.HingeParams`), geometry
+    (:class:`~finkensim.arena.WallGeometry`), sonar (:class:`~finkensim.sensors.ultrasonic.SonarModel`), ranging
+    (``RangingModel.params``), beacons (M, 2) m, imu (:class:`~finkensim.sensors.imu.ImuModel`), wall_check
+    (:class:`~finkensim.behaviours.wall_check.WallCheckParams`). A new sensor's or effect's model is one more field
+    at the end. The flown behaviour's parameter record travels beside it (its type differs per behaviour: inside
+    this record it would make numba compile the shared sense step once per behaviour)."""
+
+    copter: Any
+    hinge: Any
+    geometry: Any
+    sonar: Any
+    ranging: Any
+    beacons: np.ndarray
+    imu: Any
+    wall_check: Any
