@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Callable, Iterator
 
@@ -78,7 +78,7 @@ def _flight_log_and_figures(cfg: Config) -> None:
     T = 2
     arrays = {name: np.zeros((T,) + getattr(empty, name).shape[1:], getattr(empty, name).dtype) for name in names}
     arrays["pose"][:] = state0.world.pose
-    rec = replace(empty, t=np.arange(T) * swarm.dt, **arrays)
+    rec = empty._replace(t=np.arange(T) * swarm.dt, **arrays)
     _, traj = flight_log(cfg, swarm, state0, rec, ideal=True)
     fig, _ = viz.plot_wall_response(swarm.world, traj)
     plt.close(fig)

@@ -10,7 +10,12 @@ Built in (``behaviour.kind`` in the config), all compiled into the closed loop o
 - the wall plausibility checks ``behaviour.wall_check = "per_reading" | "sequence"`` (:mod:`.wall_check`)
   that drop readings judged to be walls from attraction.
 
-**Your own behaviour** is a plain Python function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
+**A compiled behaviour of your own** is a plug-in: an ``@njit`` ``commands(inputs, params, memory, cmd_v, cmd_w)``
+kernel and its parameter record, registered with one :func:`register_behaviour` call (:mod:`.registry`; the recipe
+is in ``docs/architecture.md``, "Add a behaviour"); it flies in the compiled engine like the built-ins, which are
+registered the same way (:mod:`.builtin`). Check it with :func:`finkensim.testing.check_behaviour`.
+
+**Your own behaviour in plain Python** is a function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
 passed as ``SwarmSim(cfg, behaviour=f)``; the full contract (what ``readings`` holds, body or world
 frame, memory) is in the docstring of :mod:`finkensim.swarm`. It sees only the copters' own sensors.
 Example — back away from every echo closer than 1 m, otherwise drift forward::

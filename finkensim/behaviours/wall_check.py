@@ -51,7 +51,6 @@ reference: ``tests/naive/behaviours.py``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -99,9 +98,9 @@ class WallCheckParams(NamedTuple):
                    math.radians(be.sequence_release_angle_deg), float(cfg.simulation.dt))
 
 
-@dataclass(frozen=True)
-class BehaviourState:
-    """Per-copter memory of the built-in behaviours, carried across steps (arrays owned by the state).
+class BehaviourState(NamedTuple):
+    """Per-copter memory of the behaviours, carried across steps (arrays owned by the state); one record for
+    Python and the kernels.
 
     fail_count (B, N, 4) int64: consecutive per-reading failures of each sonar (sequence check);
     wall (B, N, 4) bool: the sonar's reading is judged a wall (last step's judgement, any mode);
@@ -135,10 +134,12 @@ class BehaviourState:
                    np.zeros((B, N, int(memory))))
 
     def copy(self) -> "BehaviourState":
-        return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        """Copies of every array."""
+        return BehaviourState(*(a.copy() for a in self))
 
     def select(self, envs) -> "BehaviourState":
-        return replace(self, **{f.name: np.ascontiguousarray(getattr(self, f.name)[envs]) for f in fields(self)})
+        """The sub-batch of environments ``envs`` as an independent memory."""
+        return BehaviourState(*(np.ascontiguousarray(a[envs]) for a in self))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,7 +16,6 @@ step k, so readings driven with zero commands equal a ``"hover"`` :meth:`SwarmSi
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -46,7 +45,7 @@ class ControlReadings(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _control_env(b, world, memory, run, cmd_body, obs, models, grid, work):
+def _control_env(b, state, run, cmd_body, obs, models, grid, work):
     """Environment b of :func:`control_step`; ``work`` = (a :class:`~finkensim.swarm.sense.SenseBuffers` whose
     scratch arrays serve every environment of the chunk, cmd_v (N, 2), cmd_w (N,) zeros (no yaw-rate commands),
     dist_buf (S,), gap_buf (N,), the chunk's own empty grid buffers): scratch arrays, reused from one environment to
@@ -55,6 +54,7 @@ def _control_env(b, world, memory, run, cmd_body, obs, models, grid, work):
     # with the grid off, the chunk's own empty buffers: env_grid's views of the shared ones would be counted by
     # both threads on one reference count (an atomic on a contended cache line, per call)
     grid_b = env_grid(grid, b) if grid.on else no_grid
+    world = state.world
     if run.n_steps == 1:
         body_to_world_twin(world.yaw[b], cmd_body[b], cmd_v)
         step_twin(world, b, cmd_v, cmd_w, models.copter, models.hinge, models.geometry, run.dt, dist_buf, gap_buf,
@@ -62,23 +62,23 @@ def _control_env(b, world, memory, run, cmd_body, obs, models, grid, work):
     # environment b's readings in obs, the chunk's scratch arrays around them
     buf = SenseBuffers(obs.sonar[b], s.sonar_ideal, s.sonar_hit, s.sonar_down, obs.ranging[b], obs.imu_acc[b],
                        obs.imu_gyro[b], s.plate_a, s.plate_b, s.sonar_rays, s.hit_point, s.slot, s.altitude, True)
-    sense_env(b, run.step0 + run.n_steps, world, memory, run, models, buf, grid, grid_b)
+    sense_env(b, run.step0 + run.n_steps, state, run, models, buf, grid, grid_b)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
-def control_range(span, world, memory, run, cmd_body, obs, models, grid):
+def control_range(span, state, run, cmd_body, obs, models, grid):
     """Environments span[0] … span[1] − 1 of :func:`control_step`, one after another with one set of scratch arrays
     (allocating them per environment and step cost more than a tenth of a 10-copter step); releases the GIL."""
     if span[1] <= span[0]:
         return
-    N = world.pos.shape[1]
+    N = state.world.pos.shape[1]
     work = (sense_buffers(obs.sonar[0], obs.ranging[0], obs.imu_acc[0], obs.imu_gyro[0], models, True),
             np.empty((N, 2)), np.zeros(N), np.empty(models.geometry.seg_a.shape[0]), np.empty(N), no_grid_buffers())
     for b in range(span[0], span[1]):
-        _control_env(b, world, memory, run, cmd_body, obs, models, grid, work)
+        _control_env(b, state, run, cmd_body, obs, models, grid, work)
 
 
-def control_step(world, memory, run, cmd_body, obs, models, grid):
+def control_step(state, run, cmd_body, obs, models, grid):
     """For every environment b: if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the headings into the
     world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate commands; then
     :func:`~finkensim.swarm.sense.sense_env` at step ``run.step0 + run.n_steps`` into ``obs``.
@@ -89,10 +89,9 @@ def control_step(world, memory, run, cmd_body, obs, models, grid):
 
     Parameters
     ----------
-    world : WorldArrays
-        The world state of B environments, changed in place.
-    memory : MemoryArrays
-        The IMU bias and the sonars' held readings advance in place.
+    state : SwarmState
+        B environments (``memory=None``): the world steps, the IMU bias and the sonars' held readings advance, in
+        place.
     run : RunSpec
         Seed, environments, step, ``n_steps`` (0: sense only, 1: step then sense), enabled sensors.
     cmd_body : ndarray, shape (B, N, 2)
@@ -104,8 +103,8 @@ def control_step(world, memory, run, cmd_body, obs, models, grid):
     grid : EngineGrid
         The batch's copter-copter cell grid.
     """
-    B, N = world.pos.shape[0], world.pos.shape[1]
-    run_ranges(control_range, B, world, memory, run, cmd_body, obs, models, grid, parallel=B * N >= PARALLEL_MIN_COPTERS)
+    B, N = state.world.pos.shape[0], state.world.pos.shape[1]
+    run_ranges(control_range, B, state, run, cmd_body, obs, models, grid, parallel=B * N >= PARALLEL_MIN_COPTERS)
 
 
 #: batches with fewer copters in total than this run on the calling thread alone
@@ -151,7 +150,7 @@ class Controlled:
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
         if cmd.shape != (B, N, 2):
             raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")
-        control_step(ws.arrays(), state.memory_arrays(), run, cmd, obs, sim.models(), self._grid_buffers(B, N))
+        control_step(state.for_kernels(), run, cmd, obs, sim.models(), self._grid_buffers(B, N))
         return obs
 
     def sense(self, state: SwarmState, out: ControlReadings | None = None) -> ControlReadings:
@@ -166,4 +165,4 @@ class Controlled:
         the readings of the new step, in ``out`` if given, as in :meth:`sense`)."""
         obs = self._run(state, cmd_body, 1, out)
         ws = state.world
-        return replace(state, world=replace(ws, step=ws.step + 1)), obs
+        return state._replace(world=ws._replace(step=ws.step + 1)), obs

@@ -6,9 +6,9 @@ environment, no Python per step. The loop body calls non-inlined twins of the pe
 Python functions compiled as functions, :mod:`finkensim.kernels.twin`): identical results, and a cold compilation
 of ≈ 20 s instead of about a minute with everything inlined.
 
-The kernels take a handful of NamedTuple records: :class:`~finkensim.world.WorldArrays` (world state),
-:class:`~finkensim.swarm.state.MemoryArrays` (IMU bias, behaviour memory), :class:`~finkensim.swarm.state.RunSpec`
-(seed, steps, enabled sensors), :class:`~finkensim.swarm.state.Recording` (outputs) and
+The kernels take a handful of NamedTuple records: :class:`~finkensim.swarm.state.SwarmState` (the world state,
+IMU bias and behaviour memory), :class:`~finkensim.swarm.state.RunSpec`
+(seed, steps, enabled sensors), :class:`~finkensim.swarm.state.SwarmRecord` (outputs) and
 :class:`~finkensim.swarm.state.Models` (every model, the behaviour's parameters included).
 
 **One loop per behaviour.** The behaviour is a registered plug-in (:mod:`finkensim.behaviours.registry`) whose
@@ -109,7 +109,7 @@ behaviour_commands = None
 BODY_FRAME = False
 
 
-def _swarm_env(span, world, memory, run, rec, models, params, grid):
+def _swarm_env(span, state, run, rec, models, params, grid):
     """``run.n_steps`` steps of the closed loop for environments span[0] … span[1] − 1, one after another, in place
     (one thread's share of :func:`swarm_rollout`; releases the GIL). Each step k: 1. sense
     (:func:`~finkensim.swarm.sense.sense_env`), 2. behave (dead reckoning, the wall check, then the behaviour's
@@ -119,6 +119,8 @@ def _swarm_env(span, world, memory, run, rec, models, params, grid):
     The template of :func:`engine_for` (never compiled itself). The environment loop is here, not in a caller:
     numba links every callee's code into its caller and optimizes it again, so each level of calls above the engine
     costs seconds of cold compile."""
+    world = state.world
+    memory = state.behaviour
     N = world.pos.shape[1]
     R = N + models.beacons.shape[0]
     wp = models.wall_check
@@ -155,7 +157,7 @@ def _swarm_env(span, world, memory, run, rec, models, params, grid):
             k = run.step0 + t
             _record_state(t, b, world, rec)
             # 1. sense
-            sense_env(b, k, world, memory, run, models, buf, grid, grid_b)
+            sense_env(b, k, state, run, models, buf, grid, grid_b)
             # 2. behave
             if run.do_imu:
                 dead_reckon_twin(buf.imu_acc, buf.imu_gyro, wp.dt, memory.dr_pos[b], memory.dr_vel[b],
@@ -193,7 +195,7 @@ def engine_for(behaviour):
     Returns
     -------
     numba dispatcher
-        ``engine(span, world, memory, run, rec, models, params, grid)`` (as :func:`_swarm_env`; params: the
+        ``engine(span, state, run, rec, models, params, grid)`` (as :func:`_swarm_env`; params: the
         behaviour's parameter record).
     """
     key = (behaviour.name, id(behaviour.commands), behaviour.frame, behaviour.cached)
@@ -201,7 +203,9 @@ def engine_for(behaviour):
     if engine is None:
         f = _swarm_env
         name = f"swarm_env_{behaviour.name}"
-        scope = dict(f.__globals__, behaviour_commands=behaviour.commands, BODY_FRAME=behaviour.frame == "body")
+        # its commands as a called function without Python wrappers (which the loop would link in and optimise again)
+        commands = twin(behaviour.commands, cache=behaviour.cached)
+        scope = dict(f.__globals__, behaviour_commands=commands, BODY_FRAME=behaviour.frame == "body")
         g = types.FunctionType(f.__code__, scope, name, f.__defaults__, f.__closure__)
         g.__qualname__ = name
         g.__module__ = f.__module__
@@ -216,7 +220,7 @@ def engine_for(behaviour):
 PARALLEL_MIN_COPTER_STEPS = 1024
 
 
-def swarm_rollout(world, memory, run, rec, models, grid, behaviour, params):
+def swarm_rollout(state, run, rec, models, grid, behaviour, params):
     """``run.n_steps`` steps of the closed loop for the B environments of ``world``/``memory``, in place.
 
     The environments split over numba's threads (:func:`~finkensim.kernels.threads.run_ranges`) when the call has
@@ -225,13 +229,12 @@ def swarm_rollout(world, memory, run, rec, models, grid, behaviour, params):
 
     Parameters
     ----------
-    world : WorldArrays
-        The world state (B environments), changed in place.
-    memory : MemoryArrays
-        IMU bias and behaviour memory, changed in place.
+    state : SwarmState
+        World, IMU bias and behaviour memory of B environments (``memory=None``: ``SwarmState.for_kernels``),
+        changed in place.
     run : RunSpec
         Seed, environments, steps, enabled sensors.
-    rec : Recording
+    rec : SwarmRecord
         Output arrays, filled when their leading dimension is ``run.n_steps`` (else 0).
     models : Models
         Every model of the world and the sensors.
@@ -242,6 +245,6 @@ def swarm_rollout(world, memory, run, rec, models, grid, behaviour, params):
     params : NamedTuple
         Its parameter record (``behaviour.params(cfg)``).
     """
-    B, N = world.pos.shape[0], world.pos.shape[1]
-    run_ranges(engine_for(behaviour), B, world, memory, run, rec, models, params, grid,
+    B, N = state.world.pos.shape[0], state.world.pos.shape[1]
+    run_ranges(engine_for(behaviour), B, state, run, rec, models, params, grid,
                parallel=B * N * run.n_steps >= PARALLEL_MIN_COPTER_STEPS)

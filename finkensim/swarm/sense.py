@@ -7,7 +7,7 @@ the wall check and the behaviour) and the externally commanded step of the RL en
 
 **Adding a sensor-side effect** is one field and one call: the effect's model goes at the end of
 :class:`~finkensim.swarm.state.Models`, its per-copter history (if any) at the end of
-:class:`~finkensim.swarm.state.MemoryArrays` (and ``BehaviourState``), its output buffer at the end of
+:class:`~finkensim.behaviours.wall_check.BehaviourState` (``SwarmState.behaviour``), its output buffer at the end of
 :class:`SenseBuffers`, and its kernel call into :func:`sense_env` at its place in the sequence (a correction of
 readings goes after the sensor it corrects, a latency history after all of them).
 
@@ -76,14 +76,15 @@ def sense_buffers(sonar, ranging, imu_acc, imu_gyro, models, fill_ranging):
                         fill_ranging)
 
 
-@njit(cache=True, **INTERNAL)
-def sense_env(b, k, world, memory, run, models, buf, grid, grid_b):
+@njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.twin)
+def sense_env(b, k, state, run, models, buf, grid, grid_b):
     """The sensors of environment b at step k → ``buf`` (:class:`SenseBuffers`), each when ``run`` enables it:
     sonars on the plates displaced by their current angles (then held between measurements when
     ``sonar.update_hz`` > 0: ``memory.sonar_held``), the down sonar, ranging to every copter and beacon, the IMU
-    (its bias ``memory.bias`` advances). world: :class:`~finkensim.world.WorldArrays`; memory:
-    :class:`~finkensim.swarm.state.MemoryArrays`; run: :class:`~finkensim.swarm.state.RunSpec`; models:
+    (its bias ``state.imu_bias`` advances). state: :class:`~finkensim.swarm.state.SwarmState` (held readings in
+    ``state.behaviour.sonar_held``); run: :class:`~finkensim.swarm.state.RunSpec`; models:
     :class:`~finkensim.swarm.state.Models`; grid, grid_b: the batch's cell grid and environment b's buffers."""
+    world = state.world
     seed = run.seed
     env = run.env_ids[b]
     pos = world.pos[b]
@@ -95,11 +96,11 @@ def sense_env(b, k, world, memory, run, models, buf, grid, grid_b):
         sonar_twin(pos, yaw, buf.plate_a, buf.plate_b, geo.width, geo.length, sp, seed, env, k,
                    (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, grid_b)
         if sp.update_hz > 0.0:
-            hold_twin(buf.sonar, memory.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
+            hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
     if run.do_down:
         down_twin(buf.altitude, sp, seed, env, k, buf.sonar_down)
     if run.do_ranging:
         ranging_twin(pos, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b, buf.fill_ranging)
     if run.do_imu:
-        imu_twin(world.acc[b], yaw, world.yaw_rate[b], memory.bias[b], models.imu, seed, env, k, buf.imu_acc,
+        imu_twin(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
                  buf.imu_gyro)

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import threading
-from dataclasses import replace
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -21,8 +20,8 @@ from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic
 from ..world import World
 from ..kernels.cellgrid import engine_grid
 from .kernel import swarm_rollout
-from .state import NO_RANGING_ROWS, RECORDABLE, SENSOR_OF, Models, Recording, RunSpec, SensorReadings, SwarmRecord, \
-    SwarmState, concat_records
+from .state import NO_RANGING_ROWS, RECORDABLE, SENSOR_OF, Models, RunSpec, SensorReadings, SwarmRecord, \
+    SwarmState, concat_records, kernel_record
 
 __all__ = ["SwarmSim", "needs_sensors", "check_behaviour_sensors"]
 
@@ -435,9 +434,9 @@ class SwarmSim:
             run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, float(self.dt),
                           self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"],
                           self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS)
-            swarm_rollout(w.arrays(), new.memory_arrays(), run, Recording(**rec), self.models(),
+            swarm_rollout(new.for_kernels(), run, kernel_record(rec), self.models(),
                           engine_grid(self.world.grid, w.n_envs, w.n_copters), self.behaviour, self.params)
-            new = replace(new, world=replace(w, step=w.step + T))
+            new = new._replace(world=w._replace(step=w.step + T))
         counters = {
             "collisions": new.world.collisions - ws0.collisions,
             "wall_contacts": new.world.wall_contacts - ws0.wall_contacts,
