@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from finkensim.kernels.cellgrid import build_env, grid_spec, query_env, raycast_fan_env
+from finkensim.kernels.cellgrid import GridSpec, build_env, grid_spec, query_env, raycast_fan_env
 from finkensim.kernels.cellgrid_batch import neighbour_counts
 from finkensim.kernels.geometry import ray_circle
 from finkensim.kernels.raycast import box_exit
@@ -149,6 +149,7 @@ def sonar_grid(pos, vel, yaw, width, length, n_steps, x0, y0, inv_cell, nx, ny, 
     dirs = np.empty((4, 2))
     ts = np.empty(4)
     js = np.empty(4, dtype=np.int64)
+    spec = GridSpec(x0, y0, 1.0 / inv_cell, inv_cell, nx, ny)
     for _ in range(n_steps):
         _move(pos, vel, width, length)
         build_env(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
@@ -157,8 +158,7 @@ def sonar_grid(pos, vel, yaw, width, length, n_steps, x0, y0, inv_cell, nx, ny, 
             _ray_dirs(yaw[i], dirs)
             ox = spos[s, 0]
             oy = spos[s, 1]
-            raycast_fan_env(ox, oy, dirs, SONAR_RANGE, RADIUS, i, x0, y0, inv_cell, nx, ny, cell_start, order, spos,
-                            ts, js)
+            raycast_fan_env(ox, oy, dirs, SONAR_RANGE, RADIUS, i, spec, (cell_start, order, spos), ts, js)
             for k in range(4):
                 out[i, k] = min(min(box_exit(ox, oy, dirs[k, 0], dirs[k, 1], width, length), ts[k]), SONAR_RANGE)
 

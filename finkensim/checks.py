@@ -40,9 +40,11 @@ def first_difference(a, b):
 
 
 def _leaves(x, prefix: str = ""):
-    """(name, value) of every leaf of a dataclass / dict tree (states, trajectories, records)."""
+    """(name, value) of every leaf of a dataclass / NamedTuple / dict tree (states, trajectories, records)."""
     if is_dataclass(x) and not isinstance(x, type):
         items = [(f.name, getattr(x, f.name)) for f in fields(x)]
+    elif isinstance(x, tuple) and hasattr(x, "_fields"):
+        items = list(x._asdict().items())
     elif isinstance(x, dict):
         items = list(x.items())
     else:
@@ -78,13 +80,13 @@ def _select_run(rec, k):
     if rec is None:
         return None
     out = {}
-    for f in fields(rec):
-        v = getattr(rec, f.name)
+    for name in (rec._fields if hasattr(rec, "_fields") else [f.name for f in fields(rec)]):
+        v = getattr(rec, name)
         if isinstance(v, dict):
             v = {n: np.ascontiguousarray(a[k:k + 1]) for n, a in v.items()}
         elif isinstance(v, np.ndarray) and v.ndim >= 2:
             v = np.ascontiguousarray(v[:, k:k + 1])
-        out[f.name] = v
+        out[name] = v
     return type(rec)(**out)
 
 

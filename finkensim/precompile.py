@@ -12,7 +12,7 @@ follows from numba's lazy compilation.
 The jobs:
 
 * ``closed loop``: one step of :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` as
-  :func:`~finkensim.scenario.simulate_flight` records it (the compiled engine ``swarm_env`` and its callees, the
+  :func:`~finkensim.scenario.simulate_flight` records it (the compiled engine ``swarm_env_<behaviour>`` and its callees, the
   initial placement);
 * ``flight log and figures``: :func:`~finkensim.scenario.flight_log` with the error-free values and the wall figure of
   ``finkensim run`` on a two-sample record of zeros (the ideal ranging table and readings, the plate distances).
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Callable, Iterator
 
@@ -78,7 +78,7 @@ def _flight_log_and_figures(cfg: Config) -> None:
     T = 2
     arrays = {name: np.zeros((T,) + getattr(empty, name).shape[1:], getattr(empty, name).dtype) for name in names}
     arrays["pose"][:] = state0.world.pose
-    rec = replace(empty, t=np.arange(T) * swarm.dt, **arrays)
+    rec = empty._replace(t=np.arange(T) * swarm.dt, **arrays)
     _, traj = flight_log(cfg, swarm, state0, rec, ideal=True)
     fig, _ = viz.plot_wall_response(swarm.world, traj)
     plt.close(fig)

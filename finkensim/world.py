@@ -16,14 +16,14 @@ The world is physics only: it moves copters and plates given commands and knows 
 compiled closed loop (sensors → behaviour → :func:`step_env`) is :class:`finkensim.swarm.SwarmSim`;
 ready-made open-loop controllers for :meth:`World.rollout` are in :mod:`finkensim.behaviours.open_loop`.
 
-Kernels take the state and the static model as flat NamedTuple records: :class:`WorldArrays` (the
-state arrays), :class:`~finkensim.copters.CopterParams` (body), :class:`~finkensim.arena.HingeParams`
+Kernels take the state and the static model as flat NamedTuple records: :class:`WorldState` itself (one record
+for Python and numba), :class:`~finkensim.copters.CopterParams` (body), :class:`~finkensim.arena.HingeParams`
 (hinges) and :class:`~finkensim.arena.WallGeometry` (wall segments and plates).
 """
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -36,28 +36,6 @@ from .kernels.cellgrid import engine_grid, env_grid, grid_params
 from .kernels.geometry import nearest_body_distance_env, nearest_body_distance_within_env
 from .kernels.rng import STREAM_INIT, counter_key, uniform
 from .kernels.threads import run_ranges
-
-
-class WorldArrays(NamedTuple):
-    """The state arrays of a :class:`WorldState` as one flat record for the kernels (views, not copies).
-
-    pos (B, N, 2) m; vel (B, N, 2) m/s; acc (B, N, 2) m/s²; yaw (B, N) rad; yaw_rate (B, N) rad/s;
-    theta (B, S) rad; omega (B, S) rad/s; integ (B, S) rad·s; in_wall, in_collision (B, N) bool;
-    wall_contacts, collisions (B, N) int64. Kernels index environment b as ``w.pos[b]`` etc.
-    """
-
-    pos: np.ndarray
-    vel: np.ndarray
-    acc: np.ndarray
-    yaw: np.ndarray
-    yaw_rate: np.ndarray
-    theta: np.ndarray
-    omega: np.ndarray
-    integ: np.ndarray
-    in_wall: np.ndarray
-    in_collision: np.ndarray
-    wall_contacts: np.ndarray
-    collisions: np.ndarray
 
 
 @njit(cache=True)
@@ -82,9 +60,10 @@ def walls_from_positions(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dis
 
 
 
-@dataclass(frozen=True)
-class WorldState:
-    """Everything that changes during a run. Arrays are owned by this state (never aliased).
+class WorldState(NamedTuple):
+    """Everything that changes during a run, as one record for Python and the kernels (numba takes it as it is;
+    kernels index environment b as ``w.pos[b]``). Arrays are owned by this state (never aliased); a changed copy
+    is ``state._replace(step=...)``.
 
     Attributes:
         pos: (B, N, 2) copter positions, m.
@@ -122,10 +101,12 @@ class WorldState:
 
     @property
     def n_envs(self) -> int:
+        """B, the number of environments."""
         return self.pos.shape[0]
 
     @property
     def n_copters(self) -> int:
+        """N, copters per environment."""
         return self.pos.shape[1]
 
     @property
@@ -133,22 +114,17 @@ class WorldState:
         """(B, N, 3): x, y, yaw."""
         return np.concatenate([self.pos, self.yaw[..., None]], axis=-1)
 
-    def arrays(self) -> WorldArrays:
-        """The state arrays as a :class:`WorldArrays` record (the same arrays, not copies)."""
-        return WorldArrays(self.pos, self.vel, self.acc, self.yaw, self.yaw_rate, self.theta, self.omega,
-                           self.integ, self.in_wall, self.in_collision, self.wall_contacts, self.collisions)
+    def arrays(self) -> "WorldState":
+        """The state itself: it is the kernels' record (for callers of the former paired ``WorldArrays``)."""
+        return self
 
     def copy(self) -> "WorldState":
-        return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)
-                                if isinstance(getattr(self, f.name), np.ndarray)})
+        """Copies of every array."""
+        return WorldState(*(v.copy() if isinstance(v, np.ndarray) else v for v in self))
 
     def select(self, envs) -> "WorldState":
         """The sub-batch of environments ``envs`` (index array or slice), as an independent state."""
-        out = {}
-        for f in fields(self):
-            v = getattr(self, f.name)
-            out[f.name] = np.ascontiguousarray(v[envs]) if isinstance(v, np.ndarray) else v
-        return WorldState(**out)
+        return WorldState(*(np.ascontiguousarray(v[envs]) if isinstance(v, np.ndarray) else v for v in self))
 
 
 @dataclass(frozen=True)
@@ -168,7 +144,7 @@ class Trajectory:
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
 def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
-    """Advance environment b of the :class:`WorldArrays` ``w`` by dt s in place: copters move, contacts
+    """Advance environment b of the :class:`WorldState` ``w`` by dt s in place: copters move, contacts
     are counted, plates respond.
 
     cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; cp
@@ -196,7 +172,7 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
 
 @njit(cache=True, parallel=True)
 def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt, g):
-    """One step of every environment of ``w`` (:class:`WorldArrays`) in place; cmd_v (B, N, 2), cmd_w (B, N);
+    """One step of every environment of ``w`` (:class:`WorldState`) in place; cmd_v (B, N, 2), cmd_w (B, N);
     g: the :class:`~finkensim.kernels.cellgrid.EngineGrid` of the batch."""
     for b in prange(w.pos.shape[0]):
         dist_buf = np.empty(geo.seg_a.shape[0])
@@ -419,7 +395,7 @@ class World:
         """
         new = state.copy()
         self.step_inplace(new, cmd_vel, cmd_yaw_rate)
-        return replace(new, step=state.step + 1)
+        return new._replace(step=state.step + 1)
 
     def step_inplace(self, state: WorldState, cmd_vel, cmd_yaw_rate=None) -> None:
         """Like :meth:`step` but mutates ``state``'s arrays (its ``step`` counter is not advanced).
@@ -434,7 +410,7 @@ class World:
             Yaw-rate commands, rad/s (default 0).
         """
         cmd_vel, cmd_yaw_rate = self.check_commands(state, cmd_vel, cmd_yaw_rate)
-        _step_batch(state.arrays(), cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params, self.geometry,
+        _step_batch(state, cmd_vel, cmd_yaw_rate, self.copter_params, self.hinge_params, self.geometry,
                     self.dt, engine_grid(self.grid, state.n_envs, state.n_copters))
 
     def rollout(self, state: WorldState, n_steps: int, controller: Callable,
@@ -481,7 +457,7 @@ class World:
                 rec["yaw_rate"][k], rec["theta"][k] = new.yaw_rate, new.theta
             cmd_v, cmd_w = controller(self, new)
             self.step_inplace(new, cmd_v, cmd_w)
-            new = replace(new, step=new.step + 1)
+            new = new._replace(step=new.step + 1)
         traj = None
         if record:
             traj = Trajectory(t=(state.step + np.arange(T)) * self.dt, **rec)

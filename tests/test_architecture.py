@@ -11,6 +11,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "finkensim"
 SOURCES = sorted(PACKAGE.rglob("*.py"))
 MAX_LINES = 500
 MAX_PARAMS = 16
+#: the engine's kernels (finkensim/swarm/) take a handful of records (docs/architecture.md, "The engine")
+MAX_ENGINE_PARAMS = 10
 
 
 def _tree(path: Path) -> ast.Module:
@@ -38,6 +40,18 @@ def test_functions_take_at_most_16_parameters():
     assert not wide, f"functions with more than {MAX_PARAMS} parameters: {wide}"
 
 
+def test_engine_functions_take_at_most_10_parameters():
+    wide = []
+    for p in sorted((PACKAGE / "swarm").glob("*.py")):
+        for node in ast.walk(_tree(p)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+                if n > MAX_ENGINE_PARAMS:
+                    wide.append(f"{_rel(p)}:{node.lineno} {node.name} ({n})")
+    assert not wide, f"engine functions with more than {MAX_ENGINE_PARAMS} parameters: {wide}"
+
+
 def test_no_module_imports_another_modules_private_names():
     bad = []
     for p in SOURCES:
@@ -58,7 +72,7 @@ LAYERS = [
     ("flightlog", "metrics", "analysis", "default_scenario"),
     ("scenario", "episode", "checks", "viz", "precompile"),
     ("sweep", "gap"),
-    ("envs", "tune", "importing", "checkfiles", "datasets", "testing"),  # check reads study files and recordings too
+    ("envs", "tune", "importing", "checkfiles", "datasets", "testing", "plugin_checks"),  # check reads study files and recordings too
     ("cli", "cliargs", "precompile_cli", "gapvalidate_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}

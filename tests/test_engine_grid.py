@@ -20,7 +20,7 @@ from finkensim.config import Config
 from finkensim.copters import update_contacts_env
 from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_params
 from finkensim.sensors.ranging import RangingModel
-from finkensim.swarm.kernel import ranging_twin
+from finkensim.swarm.sense import ranging_twin
 from finkensim.swarm import SwarmSim
 from finkensim.swarm.state import concat_records
 from finkensim.world import World

@@ -88,7 +88,7 @@ def test_ray_circle_matches_naive(o, angle, c, r):
     (0.0, 0.0, 1.0, 0.0, np.inf, -1.0, np.inf, 1.0),
 ])
 def test_ray_segment_edge_cases_agree_between_selects_and_branches(args):
-    with np.errstate(invalid="ignore"):  # the naive twin's numpy arithmetic on infinities
+    with np.errstate(invalid="ignore"):  # the naive reference's numpy arithmetic on infinities
         want = naive.ray_segment(args[0:2], args[2:4], args[4:6], args[6:8])
     assert _same(g.ray_segment(*args), want) and _same(g.ray_segment(*args, False), want)
 

@@ -255,7 +255,7 @@ def test_shape_errors_name_the_argument():
 @settings(max_examples=40, deadline=None)
 @given(st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.floats(-0.5, 0.5), st.integers(0, 2**31))
 def test_constant_biases_match_reference(bx, by, bg, seed):
-    """``imu.acc_bias`` / ``imu.gyro_bias`` (ImuModel's constant biases) add to every reading, as the NumPy twin."""
+    """``imu.acc_bias`` / ``imu.gyro_bias`` (ImuModel's constant biases) add to every reading, as the NumPy reference."""
     rng = np.random.default_rng(seed)
     B, N = 2, 3
     acc, yaw, yaw_rate = (a[0] for a in _motion(rng, 1, B, N))

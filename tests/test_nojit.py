@@ -15,7 +15,7 @@ warnings.simplefilter("ignore")  # uint64 wrap-around in the counter-based draws
 import finkensim as fs, finkensim.gap, finkensim.envs, finkensim.importing
 sim = fs.SwarmSim(fs.load_config())
 _, rec = sim.rollout(sim.init(n_envs=2, seed=3), n_steps=6)
-np.savez(sys.argv[1], **{k: v for k, v in vars(rec).items() if isinstance(v, np.ndarray)})
+np.savez(sys.argv[1], **{k: v for k, v in rec._asdict().items() if isinstance(v, np.ndarray)})
 """
 
 
@@ -27,7 +27,7 @@ def test_the_package_flies_the_same_flight_without_jit(tmp_path):
     sim = fs.SwarmSim(fs.load_config())
     _, rec = sim.rollout(sim.init(n_envs=2, seed=3), n_steps=6)
     plain = np.load(out)
-    compiled = {k: v for k, v in vars(rec).items() if isinstance(v, np.ndarray)}
+    compiled = {k: v for k, v in rec._asdict().items() if isinstance(v, np.ndarray)}
     assert set(plain.files) == set(compiled)
     for name in plain.files:
         np.testing.assert_array_equal(plain[name], compiled[name], err_msg=name)

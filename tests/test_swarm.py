@@ -26,18 +26,19 @@ def _noisy_cfg(kind="attraction_repulsion", wall_check="sequence", n=3, **kw):
 
 
 def _assert_same(a, b, what):
-    """Bit-for-bit equality of two dataclass trees (states, records), naming the first difference."""
-    for f in fields(a):
-        x, y = getattr(a, f.name), getattr(b, f.name)
+    """Bit-for-bit equality of two dataclass / NamedTuple trees (states, records), naming the first difference."""
+    names = a._fields if hasattr(a, "_fields") else [f.name for f in fields(a)]
+    for name in names:
+        x, y = getattr(a, name), getattr(b, name)
         if isinstance(x, dict):
             for k in x:
-                assert first_difference(x[k], y[k]) is None, f"{what}.{f.name}[{k}]: {first_difference(x[k], y[k])}"
+                assert first_difference(x[k], y[k]) is None, f"{what}.{name}[{k}]: {first_difference(x[k], y[k])}"
         elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
-            assert first_difference(x, y) is None, f"{what}.{f.name}: first difference at {first_difference(x, y)}"
-        elif hasattr(x, "__dataclass_fields__"):
-            _assert_same(x, y, f"{what}.{f.name}")
-        elif f.name != "memory":
-            assert x == y, f"{what}.{f.name}: {x!r} != {y!r}"
+            assert first_difference(x, y) is None, f"{what}.{name}: first difference at {first_difference(x, y)}"
+        elif hasattr(x, "__dataclass_fields__") or hasattr(x, "_fields"):
+            _assert_same(x, y, f"{what}.{name}")
+        elif name != "memory":
+            assert x == y, f"{what}.{name}: {x!r} != {y!r}"
 
 
 # ------------------------------------------------------------------------------ compiled == per-step reference
@@ -107,14 +108,13 @@ def test_rollout_continues_where_it_stopped():
 
 def _select_record(rec: SwarmRecord, k):
     out = {}
-    for f in fields(rec):
-        v = getattr(rec, f.name)
-        if f.name == "counters":
-            out[f.name] = {n: c[k:k + 1] for n, c in v.items()}
-        elif v is None or f.name == "t":
-            out[f.name] = v
+    for name, v in rec._asdict().items():
+        if name == "counters":
+            out[name] = {n: c[k:k + 1] for n, c in v.items()}
+        elif v is None or name == "t":
+            out[name] = v
         else:
-            out[f.name] = v[:, k:k + 1]
+            out[name] = v[:, k:k + 1]
     return SwarmRecord(**out)
 
 

@@ -120,8 +120,8 @@ def test_rollout_is_the_same_on_one_thread_and_on_several(monkeypatch):
 
 
 def test_controlled_step_is_the_same_on_one_thread_and_on_several():
-    """The controlled step (the RL envs' compiled step) keeps ``prange``: its chunks on one thread and on two give the
-    same readings and state bit for bit."""
+    """The controlled step (the RL envs' compiled step) splits the environments over threads: on one thread and on
+    two it gives the same readings and state bit for bit."""
     sim = _noisy_sim()
     B = PARALLEL_MIN_COPTERS // 4 + 3  # enough copters for the split
     ctl = Controlled(sim)

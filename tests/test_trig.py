@@ -57,7 +57,7 @@ def test_odd_bounded_and_exact_at_zero(x):
 
 def test_hinge_with_the_polynomial_sine_stays_within_a_picoradian_of_the_exact_sine():
     """The consequence of the bound: 2000 world steps (100 s) of plates driven by copters passing by, the kernel
-    (polynomial sine) against the NumPy twin (libm sine). The angles differ by < 1e-12 rad (measured: 5e-15), i.e. the surface at
+    (polynomial sine) against the NumPy reference (libm sine). The angles differ by < 1e-12 rad (measured: 5e-15), i.e. the surface at
     flight height by < 1e-12 · lever ≈ 0.4 pm — nine orders below the sonar's millimetre resolution."""
     cfg = Config()
     a = Arena.from_config(cfg.arena, cfg.walls)

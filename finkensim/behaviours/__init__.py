@@ -10,7 +10,12 @@ Built in (``behaviour.kind`` in the config), all compiled into the closed loop o
 - the wall plausibility checks ``behaviour.wall_check = "per_reading" | "sequence"`` (:mod:`.wall_check`)
   that drop readings judged to be walls from attraction.
 
-**Your own behaviour** is a plain Python function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
+**A compiled behaviour of your own** is a plug-in: an ``@njit`` ``commands(inputs, params, memory, cmd_v, cmd_w)``
+kernel and its parameter record, registered with one :func:`register_behaviour` call (:mod:`.registry`; the recipe
+is in ``docs/architecture.md``, "Add a behaviour"); it flies in the compiled engine like the built-ins, which are
+registered the same way (:mod:`.builtin`). Check it with :func:`finkensim.testing.check_behaviour`.
+
+**Your own behaviour in plain Python** is a function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
 passed as ``SwarmSim(cfg, behaviour=f)``; the full contract (what ``readings`` holds, body or world
 frame, memory) is in the docstring of :mod:`finkensim.swarm`. It sees only the copters' own sensors.
 Example — back away from every echo closer than 1 m, otherwise drift forward::
@@ -42,3 +47,7 @@ slower than the built-in ones but fine for a few environments. To run it in a Mo
 live in an importable module, in a notebook use ``executor="serial"``
 (``notebooks/03_swarm_and_sweeps.ipynb`` does exactly that).
 """
+from .registry import BEHAVIOURS, Behaviour, BehaviourInput, NoParams, get_behaviour, register_behaviour
+from . import builtin  # noqa: F401 — importing it registers the built-ins
+
+__all__ = ["BEHAVIOURS", "Behaviour", "BehaviourInput", "NoParams", "get_behaviour", "register_behaviour"]

@@ -51,7 +51,6 @@ reference: ``tests/naive/behaviours.py``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -99,9 +98,9 @@ class WallCheckParams(NamedTuple):
                    math.radians(be.sequence_release_angle_deg), float(cfg.simulation.dt))
 
 
-@dataclass(frozen=True)
-class BehaviourState:
-    """Per-copter memory of the built-in behaviours, carried across steps (arrays owned by the state).
+class BehaviourState(NamedTuple):
+    """Per-copter memory of the behaviours, carried across steps (arrays owned by the state); one record for
+    Python and the kernels.
 
     fail_count (B, N, 4) int64: consecutive per-reading failures of each sonar (sequence check);
     wall (B, N, 4) bool: the sonar's reading is judged a wall (last step's judgement, any mode);
@@ -109,7 +108,8 @@ class BehaviourState:
     dr_pos (B, N, 2) m, dr_vel (B, N, 2) m/s, dr_yaw (B, N) rad: IMU dead reckoning in each copter's
     start frame; wall_onsets (B, N) int64: flags set since init; wall_readings (B, N) int64: echoes
     judged to be walls since init; sonar_held (B, N, K) m: the sonars' last measurements, shown between
-    measurements when ``sonar.update_hz`` > 0 (:mod:`finkensim.sensors.sonar_hold`).
+    measurements when ``sonar.update_hz`` > 0 (:mod:`finkensim.sensors.sonar_hold`); commands (B, N, W) float64:
+    the flown behaviour's own memory (W = ``Behaviour.memory``, :mod:`finkensim.behaviours.registry`).
     """
 
     fail_count: np.ndarray
@@ -121,19 +121,25 @@ class BehaviourState:
     wall_onsets: np.ndarray
     wall_readings: np.ndarray
     sonar_held: np.ndarray
+    commands: np.ndarray
 
     @classmethod
-    def zeros(cls, n_envs: int, n_copters: int, n_sonars: int = 4) -> "BehaviourState":
+    def zeros(cls, n_envs: int, n_copters: int, n_sonars: int = 4, memory: int = 0) -> "BehaviourState":
+        """Empty memory of ``n_envs`` environments of ``n_copters`` copters with ``n_sonars`` sonars, and
+        ``memory`` floats per copter for the behaviour."""
         B, N, K = int(n_envs), int(n_copters), int(n_sonars)
         return cls(np.zeros((B, N, K), dtype=np.int64), np.zeros((B, N, K), dtype=np.bool_),
                    np.zeros((B, N, K, 3)), np.zeros((B, N, 2)), np.zeros((B, N, 2)), np.zeros((B, N)),
-                   np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64), np.zeros((B, N, K)))
+                   np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64), np.zeros((B, N, K)),
+                   np.zeros((B, N, int(memory))))
 
     def copy(self) -> "BehaviourState":
-        return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        """Copies of every array."""
+        return BehaviourState(*(a.copy() for a in self))
 
     def select(self, envs) -> "BehaviourState":
-        return replace(self, **{f.name: np.ascontiguousarray(getattr(self, f.name)[envs]) for f in fields(self)})
+        """The sub-batch of environments ``envs`` as an independent memory."""
+        return BehaviourState(*(np.ascontiguousarray(a[envs]) for a in self))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,9 +1,10 @@
 """Reward tasks of the swarm environments: small pluggable functions of the batched state, built on
 :mod:`finkensim.metrics`.
 
-A task is an object with ``reset(ctx, pos)`` (called at every reset, all B environments at once) and
-``reward(ctx, world) -> (B,) float64`` (called after every step with the new
-:class:`~finkensim.world.WorldState`). ``ctx`` is a :class:`TaskContext` (arena size, copter radius, dt).
+A task is an object with the :class:`Task` contract: ``reset(ctx, pos)`` (called at every reset, all B environments
+at once) and ``reward(ctx, world) -> (B,) float64`` (called after every step with the new
+:class:`~finkensim.world.WorldState`); it must be deterministic and pickle
+(:func:`finkensim.plugin_checks.check_task` checks one). ``ctx`` is a :class:`TaskContext` (arena size, copter radius, dt).
 The reward is a team reward: every copter of an environment shares it (the PettingZoo env gives it
 to each agent). Register your own with :func:`register_task`::
 
@@ -17,7 +18,7 @@ to each agent). Register your own with :func:`register_task`::
 """
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import Callable, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from ..config import ConfigError
 from ..usertext import suggest
 from ..metrics import COVERAGE_CELL, WALL_DISTANCE, cohesion, coverage_cells, wall_sticking
 
-__all__ = ["TaskContext", "Cohesion", "Coverage", "WallAvoidance", "TASKS", "register_task", "make_task"]
+__all__ = ["Task", "TaskContext", "Cohesion", "Coverage", "WallAvoidance", "TASKS", "register_task", "make_task"]
 
 
 class TaskContext(NamedTuple):
@@ -35,6 +36,20 @@ class TaskContext(NamedTuple):
     radius: float
     dt: float
     n_copters: int
+
+
+@runtime_checkable
+class Task(Protocol):
+    """The contract of a reward task (module doc). Observations are the copters' enabled sensors
+    (:func:`~finkensim.envs.core.obs_layout`) and an episode ends by truncation at ``max_steps``, so a task defines
+    the reward only."""
+
+    def reset(self, ctx: TaskContext, pos) -> None:
+        """Start an episode of every environment: pos (B, N, 2) m the copters' start positions."""
+
+    def reward(self, ctx: TaskContext, world) -> np.ndarray:
+        """The team reward (B,) float64 of the step that ended in ``world`` (a
+        :class:`~finkensim.world.WorldState`)."""
 
 
 class Cohesion:

@@ -343,15 +343,17 @@ def any_within_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
 
 
 @njit(cache=True, inline="always")
-def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
-                    spos, out_t, out_j):
+def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, spec, cells, out_t, out_j):
     """Nearest copter-circle hit of each ray of a fan, within max_range.
 
     Rays O + t·dirs[k] (dirs (R, 2) unit vectors) against the circles (centre, ``radius``) of every
-    copter except ``skip``. Writes out_t (R,) m (``inf`` if no hit at t ≤ max_range) and out_j (R,)
+    copter except ``skip``, on the grid ``spec`` (:class:`GridSpec`) built into ``cells`` = (cell_start, order,
+    spos) (:func:`build_env`). Writes out_t (R,) m (``inf`` if no hit at t ≤ max_range) and out_j (R,)
     the copter hit (−1 if none); a tie keeps the lower copter index. Scans only the copters within
     max_range + radius of O (exact; see the module docstring).
     """
+    x0, y0, inv_cell, nx, ny = spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny
+    cell_start, order, spos = cells
     R = dirs.shape[0]
     for k in range(R):
         out_t[k] = np.inf

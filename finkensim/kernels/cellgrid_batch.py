@@ -74,8 +74,9 @@ def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, id
 
 
 @njit(cache=True, parallel=True)
-def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, x0, y0, inv_cell, nx, ny, out_t, out_j):
+def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, spec, out_t, out_j):
     B, N, _ = pos.shape
+    x0, y0, inv_cell, nx, ny = spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny
     R = ray_yaw.shape[0]
     for b in prange(B):
         cell_start = np.empty(nx * ny + 1, dtype=np.int64)
@@ -89,8 +90,8 @@ def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, x0, y0, inv_cell, nx, n
             for k in range(R):
                 dirs[k, 0] = np.cos(yaw[b, i] + ray_yaw[k])
                 dirs[k, 1] = np.sin(yaw[b, i] + ray_yaw[k])
-            raycast_fan_env(pos[b, i, 0], pos[b, i, 1], dirs, max_range, radius, i, x0, y0, inv_cell, nx, ny,
-                            cell_start, order, spos, out_t[b, i], out_j[b, i])
+            raycast_fan_env(pos[b, i, 0], pos[b, i, 1], dirs, max_range, radius, i, spec, (cell_start, order, spos),
+                            out_t[b, i], out_j[b, i])
 
 
 def build_grid(pos, spec: GridSpec):
@@ -146,6 +147,5 @@ def raycast_fan(pos, yaw, ray_yaw, max_range: float, radius: float, spec: GridSp
     R = ray_yaw.shape[0]
     out_t = np.empty((B, N, R))
     out_j = np.empty((B, N, R), dtype=np.int64)
-    _raycast_batch(pos, yaw, ray_yaw, float(max_range), float(radius), spec.x0, spec.y0, spec.inv_cell, spec.nx,
-                   spec.ny, out_t, out_j)
+    _raycast_batch(pos, yaw, ray_yaw, float(max_range), float(radius), spec, out_t, out_j)
     return out_t, out_j

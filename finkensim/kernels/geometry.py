@@ -2,7 +2,7 @@
 
 Scalar helpers are ``inline='always'`` so sensor and world kernels can call them inside
 their own loops; the batched kernels loop over the leading environment axis with
-``prange``. Each has a plain NumPy twin in ``tests/naive/geometry.py``.
+``prange``. Each has a plain NumPy reference in ``tests/naive/geometry.py``.
 """
 from __future__ import annotations
 

@@ -31,9 +31,10 @@ def python_function(kernel):
     return getattr(kernel, "py_func", kernel)
 
 
-def twin(kernel):
+def twin(kernel, cache: bool = True):
     """``kernel``'s Python code compiled as a called function, with the kernel's own code options (identical results),
-    for compiled callers only (:data:`INTERNAL`: no Python entry point).
+    for compiled callers only (:data:`INTERNAL`: no Python entry point); ``cache``: kept in numba's on-disk cache
+    (False for functions whose source the cache would not see change, such as a notebook's).
 
     The twin is a copy of the function named ``<name>_twin``: numba's on-disk cache files compilations under the
     Python function's name and line whatever their options, so a compilation without wrappers must not share the
@@ -51,4 +52,4 @@ def twin(kernel):
     g.__qualname__ = f.__qualname__ + "_twin"
     g.__module__ = f.__module__
     g.__doc__ = f.__doc__
-    return njit(cache=True, **INTERNAL, **opts)(g)
+    return njit(cache=cache, **INTERNAL, **opts)(g)

@@ -18,7 +18,8 @@ Each step k (the state after k steps, ``WorldState.step``), for every environmen
    controller: ``attraction_repulsion`` (body-frame command from the sonar readings, rotated to the
    world frame by the flight controller), ``random_walk`` (the open-loop bounded walk of
    :mod:`finkensim.behaviours.random_walk`, identical to ``World.rollout`` with
-   :class:`~finkensim.behaviours.open_loop.RandomWalk`) or ``hover``;
+   :class:`~finkensim.behaviours.open_loop.RandomWalk`), ``hover``, or any behaviour registered with
+   :func:`~finkensim.behaviours.register_behaviour` (its compiled ``commands`` kernel);
 3. **step** — :func:`~finkensim.world.step_env` (copters, contacts, Bernoulli plates).
 
 :meth:`SwarmSim.rollout` runs T steps of B environments in compiled code
@@ -59,8 +60,9 @@ toward the farthest echo, stop when something is closer than 0.5 m::
     sim = SwarmSim(cfg, behaviour=explorer)
     final, rec = sim.rollout(sim.init(n_envs=4, seed=0), 100)
 
-Modules: :mod:`.state` (records and state classes), :mod:`.kernel` (the compiled loop), :mod:`.sim`
-(:class:`SwarmSim`). The :class:`SwarmState` carries the world state, the IMU bias (B, N, 3) and the behaviour memory
+Modules: :mod:`.state` (the records: :class:`SwarmState`, :class:`Models`, ``RunSpec``, :class:`SwarmRecord`),
+:mod:`.sense` (the one sense step of both engines), :mod:`.kernel` (the compiled loop, one per registered behaviour:
+:mod:`finkensim.behaviours.registry`), :mod:`.sim` (:class:`SwarmSim`), :mod:`.control` (the RL step). The :class:`SwarmState` carries the world state, the IMU bias (B, N, 3) and the behaviour memory
 (:class:`~finkensim.behaviours.wall_check.BehaviourState`: fail counters, wall flags, dead reckoning).
 """
 from __future__ import annotations
@@ -68,9 +70,7 @@ from __future__ import annotations
 from ..sensors.ranging_kernels import ranging_batch, ranging_env
 from .kernel import swarm_rollout
 from .sim import SwarmSim, check_behaviour_sensors, needs_sensors
-from .state import KIND_ATTRACTION, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, RECORDABLE, SensorReadings, \
-    SwarmRecord, SwarmState
+from .state import RECORDABLE, Models, SensorReadings, SwarmRecord, SwarmState
 
-__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "needs_sensors",
-           "check_behaviour_sensors", "ranging_env",
-           "ranging_batch", "swarm_rollout", "KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON"]
+__all__ = ["SwarmSim", "SwarmState", "SwarmRecord", "SensorReadings", "RECORDABLE", "Models", "needs_sensors",
+           "check_behaviour_sensors", "ranging_env", "ranging_batch", "swarm_rollout"]

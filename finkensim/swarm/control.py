@@ -3,8 +3,8 @@
 A learning agent (or any outside controller) replaces the behaviour: it sees the sensor readings of
 step k, chooses body-frame velocity commands, and the world advances to k + 1, where the copters sense
 again. :func:`control_step` does "apply commands → :func:`~finkensim.world.step_env` → sense" for B
-environments in ONE numba call (``prange`` over B; no Python per copter or per environment), with the
-very per-environment kernels of the closed loop (:mod:`finkensim.swarm.kernel`): the sonars on the plates
+environments in one numba call per thread (:func:`~finkensim.kernels.threads.run_ranges` over B; no Python per
+copter or per environment), with the very per-environment kernels of the closed loop (:mod:`finkensim.swarm.kernel`): the sonars on the plates
 displaced by their current angles, virtual ranging, the IMU. Sensing step k uses the random numbers of
 step k, so readings driven with zero commands equal a ``"hover"`` :meth:`SwarmSim.rollout
 <finkensim.swarm.SwarmSim.rollout>` bit for bit (``tests/test_envs.py`` checks this).
@@ -16,26 +16,20 @@ step k, so readings driven with zero commands equal a ``"hover"`` :meth:`SwarmSi
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
-from ..kernels.twin import INTERNAL
+from ..kernels.threads import run_ranges
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import (body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, sonar_work_buffers,
-                     step_twin)
+from .kernel import body_to_world_twin, step_twin
+from .sense import SenseBuffers, sense_buffers, sense_env
 from .state import NO_RANGING_ROWS, RunSpec, SwarmState
 
-__all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
-
-#: the environments of a parallel step are split into this many runs, each with its own scratch arrays
-#: (enough to keep every thread busy; numba's ``prange`` splits the chunks among the threads)
-CHUNKS = 64
+__all__ = ["ControlReadings", "Controlled", "control_step", "control_range", "PARALLEL_MIN_COPTERS"]
 
 
 class ControlReadings(NamedTuple):
@@ -51,75 +45,69 @@ class ControlReadings(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b):
-    """Sensors of environment b at step k → environment b of ``obs`` (a :class:`ControlReadings`; the IMU bias
-    advances); grid_b: its grid buffers."""
-    pa, pb, sonar_buf, dist, hit_kind, hit, slot = bufs
-    seed = run.seed
-    env = run.env_ids[b]
-    pos_b = w.pos[b]
-    yaw_b = w.yaw[b]
-    if run.do_sonar:
-        plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-        sonar_twin(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
-                   (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
-    if run.do_ranging:
-        # fill passed explicitly: the same signature as swarm_env's call, so one compilation serves both
-        ranging_twin(pos_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b, True)
-    if run.do_imu:
-        imu_twin(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, obs.imu_acc[b], obs.imu_gyro[b])
-
-
-@njit(cache=True, inline="always")
-def _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work):
-    """Environment b of :func:`control_step`; ``work`` = (:func:`~finkensim.swarm.kernel.sonar_work_buffers`,
-    cmd_v (N, 2), cmd_w (N,) zeros (no yaw-rate commands), dist_buf (S,), gap_buf (N,), the chunk's own empty grid
-    buffers): scratch arrays, reused from one environment to the next."""
-    bufs, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
+def _control_env(b, state, run, cmd_body, obs, models, grid, work):
+    """Environment b of :func:`control_step`; ``work`` = (a :class:`~finkensim.swarm.sense.SenseBuffers` whose
+    scratch arrays serve every environment of the chunk, cmd_v (N, 2), cmd_w (N,) zeros (no yaw-rate commands),
+    dist_buf (S,), gap_buf (N,), the chunk's own empty grid buffers): scratch arrays, reused from one environment to
+    the next."""
+    s, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
     # with the grid off, the chunk's own empty buffers: env_grid's views of the shared ones would be counted by
     # both threads on one reference count (an atomic on a contended cache line, per call)
     grid_b = env_grid(grid, b) if grid.on else no_grid
+    world = state.world
     if run.n_steps == 1:
-        body_to_world_twin(w.yaw[b], cmd_body[b], cmd_v)
-        step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
-    _sense_env(b, run.step0 + run.n_steps, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, grid_b)
+        body_to_world_twin(world.yaw[b], cmd_body[b], cmd_v)
+        step_twin(world, b, cmd_v, cmd_w, models.copter, models.hinge, models.geometry, run.dt, dist_buf, gap_buf,
+                  grid, grid_b)
+    # environment b's readings in obs, the chunk's scratch arrays around them
+    buf = SenseBuffers(obs.sonar[b], s.sonar_ideal, s.sonar_hit, s.sonar_down, obs.ranging[b], obs.imu_acc[b],
+                       obs.imu_gyro[b], s.plate_a, s.plate_b, s.sonar_rays, s.hit_point, s.slot, s.altitude, True)
+    sense_env(b, run.step0 + run.n_steps, state, run, models, buf, grid, grid_b)
 
 
-@njit(cache=True, error_model="numpy", **INTERNAL)
-def _control_chunk(c, n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
-    """Chunk c of n_chunks equal runs of environments of :func:`control_step`, with one set of scratch arrays
-    (allocating them per environment and step cost more than a tenth of a 10-copter step)."""
-    B = w.pos.shape[0]
-    N = w.pos.shape[1]
-    S = geo.plate_a.shape[0]
-    work = (sonar_work_buffers(N, S), np.empty((N, 2)), np.zeros(N), np.empty(geo.seg_a.shape[0]), np.empty(N),
-            no_grid_buffers())
-    for b in range(c * B // n_chunks, (c + 1) * B // n_chunks):
-        _control_env(b, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid, work)
+@njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
+def control_range(span, state, run, cmd_body, obs, models, grid):
+    """Environments span[0] … span[1] − 1 of :func:`control_step`, one after another with one set of scratch arrays
+    (allocating them per environment and step cost more than a tenth of a 10-copter step); releases the GIL."""
+    if span[1] <= span[0]:
+        return
+    N = state.world.pos.shape[1]
+    work = (sense_buffers(obs.sonar[0], obs.ranging[0], obs.imu_acc[0], obs.imu_gyro[0], models, True),
+            np.empty((N, 2)), np.zeros(N), np.empty(models.geometry.seg_a.shape[0]), np.empty(N), no_grid_buffers())
+    for b in range(span[0], span[1]):
+        _control_env(b, state, run, cmd_body, obs, models, grid, work)
 
 
-@njit(cache=True, parallel=True)
-def control_step(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
-    """For every environment b (``prange``): if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the
-    headings into the world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate
-    commands; then sense at step ``run.step0 + run.n_steps`` into ``obs`` (a :class:`ControlReadings`).
-    ``w`` (WorldArrays) and ``bias`` (B, N, 3) change in place."""
-    n_chunks = min(w.pos.shape[0], CHUNKS)
-    for c in prange(n_chunks):
-        _control_chunk(np.int64(c), n_chunks, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
+def control_step(state, run, cmd_body, obs, models, grid):
+    """For every environment b: if ``run.n_steps`` is 1, rotate ``cmd_body[b]`` (N, 2) m/s by the headings into the
+    world frame and :func:`~finkensim.world.step_env` by ``run.dt`` with zero yaw-rate commands; then
+    :func:`~finkensim.swarm.sense.sense_env` at step ``run.step0 + run.n_steps`` into ``obs``.
+
+    The environments split over numba's threads (:func:`~finkensim.kernels.threads.run_ranges`, as the rollout) when
+    the batch has at least :data:`PARALLEL_MIN_COPTERS` copters; the same results either way. (Not ``prange``: numba's
+    parfor lowering fails on a record of records such as :class:`~finkensim.swarm.state.Models`.)
+
+    Parameters
+    ----------
+    state : SwarmState
+        B environments (``memory=None``): the world steps, the IMU bias and the sonars' held readings advance, in
+        place.
+    run : RunSpec
+        Seed, environments, step, ``n_steps`` (0: sense only, 1: step then sense), enabled sensors.
+    cmd_body : ndarray, shape (B, N, 2)
+        Body-frame velocity commands, m/s.
+    obs : ControlReadings
+        The readings, written.
+    models : Models
+        The world's and sensors' models.
+    grid : EngineGrid
+        The batch's copter-copter cell grid.
+    """
+    B, N = state.world.pos.shape[0], state.world.pos.shape[1]
+    run_ranges(control_range, B, state, run, cmd_body, obs, models, grid, parallel=B * N >= PARALLEL_MIN_COPTERS)
 
 
-@njit(cache=True)
-def control_step_serial(w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid):
-    """:func:`control_step` without threads: a parallel launch costs far more than a small batch's work.
-
-    Its own function on purpose, not ``njit(control_step.py_func)``: numba's on-disk cache files entries under
-    the Python function, so a serial compilation of the same function shares the parallel one's cache entry and
-    whichever compiled first was loaded for both — the vector env then ran on one thread from a warm cache."""
-    _control_chunk(0, 1, w, bias, run, cmd_body, obs, cp, hp, geo, sp, rp, beacons, ip, grid)
-
-
-#: batches with fewer copters in total than this run :data:`control_step_serial`
+#: batches with fewer copters in total than this run on the calling thread alone
 PARALLEL_MIN_COPTERS = 512
 
 
@@ -157,20 +145,12 @@ class Controlled:
                                 or any(a.dtype != np.float64 or not a.flags.c_contiguous for a in out)):
             raise ValueError(f"out has shapes {[a.shape for a in out]}: expected C-contiguous float64 arrays of shapes "
                              f"{list(want)}, as Controlled.readings({B}, {N}) makes them")
-        run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, 0, float(sim.dt), sim.enabled["sonar"],
+        run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, float(sim.dt), sim.enabled["sonar"],
                       False, sim.enabled["ranging"], sim.enabled["imu"], NO_RANGING_ROWS)
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
         if cmd.shape != (B, N, 2):
             raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")
-        w = sim.world
-        kernel = control_step if B * N >= PARALLEL_MIN_COPTERS else control_step_serial
-        kernel(ws.arrays(), state.imu_bias, run, cmd, obs, w.copter_params, w.hinge_params, w.geometry,
-                     sim.sonar, sim.ranging.params, sim.beacons, sim.imu, self._grid_buffers(B, N))
-        if sim.enabled["sonar"] and sim.sonar.update_hz > 0.0:  # sample-and-hold, the state's held readings
-            held = state.behaviour.sonar_held
-            for b in range(B):
-                hold_env(obs.sonar[b], held[b], run.step0 + n_steps, run.dt, sim.sonar.update_hz,
-                         sim.sonar.update_phase)
+        control_step(state.for_kernels(), run, cmd, obs, sim.models(), self._grid_buffers(B, N))
         return obs
 
     def sense(self, state: SwarmState, out: ControlReadings | None = None) -> ControlReadings:
@@ -185,4 +165,4 @@ class Controlled:
         the readings of the new step, in ``out`` if given, as in :meth:`sense`)."""
         obs = self._run(state, cmd_body, 1, out)
         ws = state.world
-        return replace(state, world=replace(ws, step=ws.step + 1)), obs
+        return state._replace(world=ws._replace(step=ws.step + 1)), obs

@@ -1,65 +1,50 @@
 """The compiled closed loop: T steps of sense → behave → step for B environments in one numba kernel.
 
-:func:`swarm_rollout` splits the environments over numba's threads (:func:`swarm_env` on each share, a ``nogil``
-kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per environment, no
-Python per step. The loop body calls non-inlined twins
-of the per-environment kernels (the same Python functions compiled as functions): identical results,
-and a cold compilation of ≈ 20 s instead of about a minute with everything inlined.
+:func:`swarm_rollout` splits the environments over numba's threads (the behaviour's :func:`engine_for` on each
+share, a ``nogil`` kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per
+environment, no Python per step. The loop body calls non-inlined twins of the per-environment kernels (the same
+Python functions compiled as functions, :mod:`finkensim.kernels.twin`): identical results, and a cold compilation
+of ≈ 20 s instead of about a minute with everything inlined.
 
-Arguments are flat NamedTuple records: :class:`~finkensim.world.WorldArrays` (world state),
-:class:`~finkensim.swarm.state.MemoryArrays` (IMU bias, behaviour memory),
-:class:`~finkensim.swarm.state.RunSpec` (seed, steps, behaviour, enabled sensors),
-:class:`~finkensim.swarm.state.Recording` (outputs), and the model records
-(:class:`~finkensim.copters.CopterParams`, :class:`~finkensim.arena.HingeParams`,
-:class:`~finkensim.arena.WallGeometry`, :class:`~finkensim.sensors.ultrasonic.SonarModel`,
-``RangingModel.params``, :class:`~finkensim.sensors.imu.ImuModel`,
-:class:`~finkensim.behaviours.random_walk.RandomWalkParams`,
-:class:`~finkensim.behaviours.attraction.AttractionParams`,
-:class:`~finkensim.behaviours.wall_check.WallCheckParams`).
+The kernels take a handful of NamedTuple records: :class:`~finkensim.swarm.state.SwarmState` (the world state,
+IMU bias and behaviour memory), :class:`~finkensim.swarm.state.RunSpec`
+(seed, steps, enabled sensors), :class:`~finkensim.swarm.state.SwarmRecord` (outputs) and
+:class:`~finkensim.swarm.state.Models` (every model, the behaviour's parameters included).
+
+**One loop per behaviour.** The behaviour is a registered plug-in (:mod:`finkensim.behaviours.registry`) whose
+``commands`` kernel the loop calls at every step. :func:`engine_for` compiles the loop's code (:func:`_swarm_env`)
+once per behaviour with that kernel bound as a global, named ``swarm_env_<name>``: numba inlines and optimises the
+call like any callee (a dispatcher passed as an *argument* would work too, but numba's on-disk cache never hits
+for it — the argument's type holds the dispatcher object, new in each process — so every process would compile the
+loop again and add an entry to the cache index). Built-in behaviours' loops are cached on disk; a user's behaviour
+(``cached=False``) compiles in each process.
 """
 from __future__ import annotations
+
+import types
 
 import numpy as np
 from numba import njit
 
-from ..behaviours.attraction import attraction_env, body_to_world_env
-from ..behaviours.random_walk import random_walk_env
+from ..behaviours.attraction import body_to_world_env
+from ..behaviours.registry import BehaviourInput
 from ..behaviours.wall_check import WALL_CHECK_NONE, dead_reckon_env, wall_check_env
-from ..sensors.imu import imu_env
-from ..sensors.ranging_kernels import ranging_grid_env
-from ..sensors.sonar_hold import hold_env
-from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 from ..kernels.cellgrid import env_grid
 from ..kernels.threads import run_ranges
 from ..kernels.twin import INTERNAL, twin
 from ..world import step_env
-from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
+from .sense import sense_buffers, sense_env
 
-__all__ = ["swarm_env", "swarm_rollout", "sonar_work_buffers", "PARALLEL_MIN_COPTER_STEPS"]
+__all__ = ["engine_for", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS", "dead_reckon_twin", "wall_check_twin",
+           "body_to_world_twin", "step_twin"]
 
 
-# the per-environment kernels as called functions (finkensim.kernels.twin); control.py calls them too
-plates_twin = twin(displaced_plates_env)
-sonar_twin = twin(ultrasonic_env)
-hold_twin = twin(hold_env)
-down_twin = twin(down_env)
-ranging_twin = twin(ranging_grid_env)
-imu_twin = twin(imu_env)
+# the per-environment kernels of behave and step as called functions (finkensim.kernels.twin); control.py calls
+# some of them too
 dead_reckon_twin = twin(dead_reckon_env)
 wall_check_twin = twin(wall_check_env)
-attraction_twin = twin(attraction_env)
 body_to_world_twin = twin(body_to_world_env)
-random_walk_twin = twin(random_walk_env)
 step_twin = twin(step_env)
-
-
-@njit(cache=True, **INTERNAL)
-def sonar_work_buffers(N, S):
-    """The scratch arrays of one environment's sensing: plate ends pa, pb (S, 2), sonar_buf (N, 4, 4), dist (N, 4),
-    hit_kind (N, 4), hit (N, 4, 2), slot (N,) (the work tuple of
-    :func:`~finkensim.sensors.ultrasonic.ultrasonic_env`)."""
-    return (np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)), np.empty((N, N_SONARS)),
-            np.empty((N, N_SONARS), dtype=np.int64), np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64))
 
 
 @njit(cache=True, **INTERNAL)
@@ -89,30 +74,29 @@ def _record_state(t, b, w, rec):
 
 
 @njit(cache=True, **INTERNAL)
-def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g, cmd_v, cmd_w):
-    """What environment b sensed and commanded at step t → rec, where recorded. son, dist (N, 4) m,
-    hit_kind (N, 4), wall_b (N, 4) bool, down (N,) m, rng (N, N + M) m, imu_a (N, 2), imu_g (N,), cmd_v
-    (N, 2) m/s, cmd_w (N,) rad/s."""
-    for n in range(son.shape[0]):
-        for j in range(N_SONARS):
+def _record_step(t, b, rec, buf, wall_b, cmd_v, cmd_w):
+    """What environment b sensed and commanded at step t → rec, where recorded. buf: its
+    :class:`~finkensim.swarm.sense.SenseBuffers`; wall_b (N, 4) bool; cmd_v (N, 2) m/s; cmd_w (N,) rad/s."""
+    for n in range(buf.sonar.shape[0]):
+        for j in range(buf.sonar.shape[1]):
             if rec.sonar.shape[0] > 0:
-                rec.sonar[t, b, n, j] = son[n, j]
+                rec.sonar[t, b, n, j] = buf.sonar[n, j]
             if rec.sonar_ideal.shape[0] > 0:
-                rec.sonar_ideal[t, b, n, j] = dist[n, j]
+                rec.sonar_ideal[t, b, n, j] = buf.sonar_ideal[n, j]
             if rec.sonar_hit.shape[0] > 0:
-                rec.sonar_hit[t, b, n, j] = hit_kind[n, j]
+                rec.sonar_hit[t, b, n, j] = buf.sonar_hit[n, j]
             if rec.wall.shape[0] > 0:
                 rec.wall[t, b, n, j] = wall_b[n, j]
         if rec.sonar_down.shape[0] > 0:
-            rec.sonar_down[t, b, n] = down[n]
+            rec.sonar_down[t, b, n] = buf.sonar_down[n]
         if rec.ranging.shape[0] > 0:
-            for j in range(rng.shape[1]):
-                rec.ranging[t, b, n, j] = rng[n, j]
+            for j in range(buf.ranging.shape[1]):
+                rec.ranging[t, b, n, j] = buf.ranging[n, j]
         if rec.imu_acc.shape[0] > 0:
-            rec.imu_acc[t, b, n, 0] = imu_a[n, 0]
-            rec.imu_acc[t, b, n, 1] = imu_a[n, 1]
+            rec.imu_acc[t, b, n, 0] = buf.imu_acc[n, 0]
+            rec.imu_acc[t, b, n, 1] = buf.imu_acc[n, 1]
         if rec.imu_gyro.shape[0] > 0:
-            rec.imu_gyro[t, b, n] = imu_g[n]
+            rec.imu_gyro[t, b, n] = buf.imu_gyro[n]
         if rec.cmd_vel.shape[0] > 0:
             rec.cmd_vel[t, b, n, 0] = cmd_v[n, 0]
             rec.cmd_vel[t, b, n, 1] = cmd_v[n, 1]
@@ -120,81 +104,115 @@ def _record_step(t, b, rec, son, dist, hit_kind, wall_b, down, rng, imu_a, imu_g
             rec.cmd_yaw_rate[t, b, n] = cmd_w[n]
 
 
-@njit(cache=True, nogil=True, no_cfunc_wrapper=True)  # called from Python only: no C callback wrapper
-def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
-    """``run.n_steps`` steps of the closed loop for environments span[0] … span[1] − 1, one after another, in place
-    (one thread's share of :func:`swarm_rollout`; releases the GIL). Each step k: 1. sense (sonars on the plates
-    displaced by their current angles, down sonar, ranging, IMU + dead reckoning), 2. behave (wall check, then the
-    built-in controller ``run.kind``), 3. :func:`~finkensim.world.step_env`. beacons (M, 2) m; grid: the
-    copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`).
+#: placeholders of the globals :func:`engine_for` binds in each behaviour's copy of :func:`_swarm_env`
+behaviour_commands = None
+BODY_FRAME = False
 
-    The environment loop is here, not in a caller: numba links every callee's code into its caller and optimizes it
-    again, so each level of calls above the engine costs seconds of cold compile."""
-    N = w.pos.shape[1]
-    S = geo.plate_a.shape[0]
-    R = N + beacons.shape[0]
+
+def _swarm_env(span, state, run, rec, models, params, grid):
+    """``run.n_steps`` steps of the closed loop for environments span[0] … span[1] − 1, one after another, in place
+    (one thread's share of :func:`swarm_rollout`; releases the GIL). Each step k: 1. sense
+    (:func:`~finkensim.swarm.sense.sense_env`), 2. behave (dead reckoning, the wall check, then the behaviour's
+    ``behaviour_commands``, rotated to the world frame when ``BODY_FRAME``), 3. :func:`~finkensim.world.step_env`.
+    grid: the copter-copter cell grid of the batch (:class:`~finkensim.kernels.cellgrid.EngineGrid`); params: the behaviour's parameter record.
+
+    The template of :func:`engine_for` (never compiled itself). The environment loop is here, not in a caller:
+    numba links every callee's code into its caller and optimizes it again, so each level of calls above the engine
+    costs seconds of cold compile."""
+    world = state.world
+    memory = state.behaviour
+    N = world.pos.shape[1]
+    R = N + models.beacons.shape[0]
+    wp = models.wall_check
     seed = run.seed
     # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
-    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
+    near_on = run.do_ranging and grid.on and wp.ranging_max_range == models.ranging.max_range
     # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
     # ranging row need not be written at every step
     fill = rec.ranging.shape[0] > 0 or not near_on
     for b in range(span[0], span[1]):
         env = run.env_ids[b]
-        pos = w.pos[b]
-        yaw = w.yaw[b]
-        # work buffers, once per environment
-        pa, pb, sonar_buf, dist, hit_kind, hit, slot = sonar_work_buffers(N, S)
-        son = np.full((N, N_SONARS), sp.max_range)
-        alt = np.full(N, sp.altitude)
-        down = np.empty(N)
+        pos = world.pos[b]
+        yaw = world.yaw[b]
         # the N × (N + M) ranging rows only when something reads them (the ranging itself, or a wall check, which
         # reads zeros with the ranging off): 800 MB per environment at N = 10 000. With the ranging on, every entry
         # read is written first at each step (all of them, or those in range: see `fill` above), so the rows need no
         # zeroing, and they are the caller's buffer, kept between rollouts (fresh pages cost the operating system's
         # zeroing of all of them on first touch: ≈ 0.2 s per call at N = 10 000, the work of three steps)
         if run.do_ranging:
-            rng = run.ranging_rows[b]
+            ranging = run.ranging_rows[b]
         else:
-            rng = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
-        imu_a = np.zeros((N, 2))
-        imu_g = np.zeros(N)
-        fail_buf = np.zeros((N, N_SONARS), dtype=np.bool_)
+            ranging = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
+        # work buffers, once per environment
+        buf = sense_buffers(np.full((N, 4), models.sonar.max_range), ranging, np.zeros((N, 2)), np.zeros(N), models,
+                            fill)
+        fail_buf = np.zeros((N, 4), dtype=np.bool_)
         cmd_body = np.zeros((N, 2))
         cmd_v = np.zeros((N, 2))
         cmd_w = np.zeros(N)
-        dist_buf = np.empty(geo.seg_a.shape[0])
+        dist_buf = np.empty(models.geometry.seg_a.shape[0])
         gap_buf = np.empty(N)
         grid_b = env_grid(grid, b)
         for t in range(run.n_steps):
             k = run.step0 + t
-            _record_state(t, b, w, rec)
+            _record_state(t, b, world, rec)
             # 1. sense
-            if run.do_sonar:
-                plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
-                sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k,
-                           (sonar_buf, dist, hit_kind, hit, slot), son, grid, grid_b)
-                if sp.update_hz > 0.0:
-                    hold_twin(son, mem.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
-            if run.do_down:
-                down_twin(alt, sp, seed, env, k, down)
-            if run.do_ranging:
-                ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
-            if run.do_imu:
-                imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
-                dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
+            sense_env(b, k, state, run, models, buf, grid, grid_b)
             # 2. behave
+            if run.do_imu:
+                dead_reckon_twin(buf.imu_acc, buf.imu_gyro, wp.dt, memory.dr_pos[b], memory.dr_vel[b],
+                                 memory.dr_yaw[b])
             if run.do_sonar:
-                wall_check_twin(son, rng, wp, fail_buf, mem.fail_count[b], mem.wall[b], mem.anchor[b], mem.dr_pos[b],
-                               mem.dr_yaw[b], mem.wall_onsets[b], mem.wall_readings[b], (pos, grid, grid_b, near_on))
-            if run.kind == KIND_ATTRACTION:
-                attraction_twin(son, mem.wall[b], seed, env, k, ap, cmd_body, cmd_w)
+                wall_check_twin(buf.sonar, ranging, wp, fail_buf, memory.fail_count[b], memory.wall[b],
+                                memory.anchor[b], memory.dr_pos[b], memory.dr_yaw[b], memory.wall_onsets[b],
+                                memory.wall_readings[b], (pos, grid, grid_b, near_on))
+            inputs = BehaviourInput(pos, yaw, buf.sonar, memory.wall[b], buf.sonar_down, ranging, buf.imu_acc,
+                                    buf.imu_gyro, seed, env, k, run.dt)
+            if BODY_FRAME:
+                behaviour_commands(inputs, params, memory.commands[b], cmd_body, cmd_w)
                 body_to_world_twin(yaw, cmd_body, cmd_v)
-            elif run.kind == KIND_RANDOM_WALK:
-                random_walk_twin(pos, seed, env, k, rw, cmd_v, cmd_w)
-            _record_step(t, b, rec, son, dist, hit_kind, mem.wall[b], down, rng, imu_a, imu_g, cmd_v, cmd_w)
+            else:
+                behaviour_commands(inputs, params, memory.commands[b], cmd_v, cmd_w)
+            _record_step(t, b, rec, buf, memory.wall[b], cmd_v, cmd_w)
             # 3. step
-            step_twin(w, b, cmd_v, cmd_w, cp, hp, geo, run.dt, dist_buf, gap_buf, grid, grid_b)
+            step_twin(world, b, cmd_v, cmd_w, models.copter, models.hinge, models.geometry, run.dt, dist_buf,
+                      gap_buf, grid, grid_b)
+
+
+_ENGINES: dict = {}
+
+
+def engine_for(behaviour):
+    """The compiled closed loop of ``behaviour`` (a :class:`~finkensim.behaviours.registry.Behaviour`): a copy of
+    :func:`_swarm_env` named ``swarm_env_<name>`` with ``behaviour_commands`` bound to its ``commands`` kernel,
+    ``@njit(nogil=True)``, cached on disk when ``behaviour.cached`` (module doc). One per behaviour and process.
+
+    Parameters
+    ----------
+    behaviour : Behaviour
+        The registered plug-in.
+
+    Returns
+    -------
+    numba dispatcher
+        ``engine(span, state, run, rec, models, params, grid)`` (as :func:`_swarm_env`; params: the
+        behaviour's parameter record).
+    """
+    key = (behaviour.name, id(behaviour.commands), behaviour.frame, behaviour.cached)
+    engine = _ENGINES.get(key)
+    if engine is None:
+        f = _swarm_env
+        name = f"swarm_env_{behaviour.name}"
+        # its commands as a called function without Python wrappers (which the loop would link in and optimise again)
+        commands = twin(behaviour.commands, cache=behaviour.cached)
+        scope = dict(f.__globals__, behaviour_commands=commands, BODY_FRAME=behaviour.frame == "body")
+        g = types.FunctionType(f.__code__, scope, name, f.__defaults__, f.__closure__)
+        g.__qualname__ = name
+        g.__module__ = f.__module__
+        g.__doc__ = f.__doc__
+        # called from Python only: no C callback wrapper
+        engine = _ENGINES[key] = njit(cache=behaviour.cached, nogil=True, no_cfunc_wrapper=True)(g)
+    return engine
 
 
 #: rollouts of fewer copter-steps (B · N · T) than this run on the calling thread alone: handing a share to another
@@ -202,11 +220,31 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
 PARALLEL_MIN_COPTER_STEPS = 1024
 
 
-def swarm_rollout(w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid):
-    """``run.n_steps`` steps of the closed loop for the B environments of ``w``/``mem``, in place: the environments
-    split over numba's threads (:func:`~finkensim.kernels.threads.run_ranges`) when the call has at least
-    :data:`PARALLEL_MIN_COPTER_STEPS` copter-steps, the T loop inside each (:func:`swarm_env`); the same results
-    either way. ``rec`` arrays are filled when their leading dimension is n_steps (else 0)."""
-    B, N = w.pos.shape[0], w.pos.shape[1]
-    run_ranges(swarm_env, B, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, wp, grid,
+def swarm_rollout(state, run, rec, models, grid, behaviour, params):
+    """``run.n_steps`` steps of the closed loop for the B environments of ``world``/``memory``, in place.
+
+    The environments split over numba's threads (:func:`~finkensim.kernels.threads.run_ranges`) when the call has
+    at least :data:`PARALLEL_MIN_COPTER_STEPS` copter-steps, the T loop inside each (:func:`engine_for`); the same
+    results either way.
+
+    Parameters
+    ----------
+    state : SwarmState
+        World, IMU bias and behaviour memory of B environments (``memory=None``: ``SwarmState.for_kernels``),
+        changed in place.
+    run : RunSpec
+        Seed, environments, steps, enabled sensors.
+    rec : SwarmRecord
+        Output arrays, filled when their leading dimension is ``run.n_steps`` (else 0).
+    models : Models
+        Every model of the world and the sensors.
+    grid : EngineGrid
+        The batch's copter-copter cell grid.
+    behaviour : Behaviour
+        The registered behaviour to fly.
+    params : NamedTuple
+        Its parameter record (``behaviour.params(cfg)``).
+    """
+    B, N = state.world.pos.shape[0], state.world.pos.shape[1]
+    run_ranges(engine_for(behaviour), B, state, run, rec, models, params, grid,
                parallel=B * N * run.n_steps >= PARALLEL_MIN_COPTER_STEPS)

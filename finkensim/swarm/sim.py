@@ -2,14 +2,14 @@
 from __future__ import annotations
 
 import threading
-from dataclasses import replace
 from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from ..behaviours.attraction import AttractionParams, attraction_repulsion, body_to_world
-from ..behaviours.open_loop import OPEN_LOOP_BEHAVIOURS, random_walk_batch
+from ..behaviours.attraction import AttractionParams, body_to_world
+from ..behaviours.open_loop import OPEN_LOOP_BEHAVIOURS
 from ..behaviours.random_walk import RandomWalkParams
+from ..behaviours.registry import BEHAVIOURS, Behaviour, BehaviourInput, get_behaviour
 from ..behaviours.wall_check import WALL_CHECK_NONE, WALL_CHECK_SEQUENCE, BehaviourState, WallCheckParams, \
     dead_reckon, wall_check
 from ..config import Config, ConfigError, load_config
@@ -20,23 +20,42 @@ from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic
 from ..world import World
 from ..kernels.cellgrid import engine_grid
 from .kernel import swarm_rollout
-from .state import KIND_ATTRACTION, KIND_CODES, KIND_HOVER, KIND_PYTHON, KIND_RANDOM_WALK, NO_RANGING_ROWS, \
-    RECORDABLE, SENSOR_OF, Recording, RunSpec, SensorReadings, SwarmRecord, SwarmState, concat_records
+from .state import NO_RANGING_ROWS, RECORDABLE, SENSOR_OF, Models, RunSpec, SensorReadings, SwarmRecord, \
+    SwarmState, concat_records, kernel_record
 
 __all__ = ["SwarmSim", "needs_sensors", "check_behaviour_sensors"]
 
 
 def needs_sensors(kind) -> bool:
-    """True when ``behaviour.kind`` (or a Python behaviour function) is a closed-loop controller that reads
-    sensors; False for the open-loop ``"random_walk"`` and ``"hover"``."""
+    """True when ``behaviour.kind`` (a registered behaviour's name, a :class:`~finkensim.behaviours.Behaviour` or a
+    Python behaviour function) is a closed-loop controller that reads sensors; False for open-loop ones such as
+    ``"random_walk"`` and ``"hover"``.
+
+    Parameters
+    ----------
+    kind : str, Behaviour or callable
+        The behaviour.
+
+    Returns
+    -------
+    bool
+        Whether it reads sensors.
+    """
+    if isinstance(kind, Behaviour) or (isinstance(kind, str) and kind in BEHAVIOURS):
+        return bool(get_behaviour(kind).sensors)
     return callable(kind) or kind not in OPEN_LOOP_BEHAVIOURS
 
 
-def _require_sensors(attraction: bool, wall_check_mode: int, enabled: dict, wall_check: str) -> None:
-    """Raise ConfigError if the behaviour (``attraction``: attraction-repulsion) or its wall check needs a sensor
-    that is not ``enabled`` (sensor name -> bool)."""
-    if attraction and not enabled["sonar"]:
-        raise ConfigError("behaviour.kind = 'attraction_repulsion' needs sonar.enabled = true")
+_SENSOR_KEYS = {"sonar": "sonar.enabled", "down": "sonar.down_enabled", "ranging": "ranging.enabled",
+                "imu": "imu.enabled"}
+
+
+def _require_sensors(behaviour, wall_check_mode: int, enabled: dict, wall_check: str) -> None:
+    """Raise ConfigError if the behaviour (a :class:`~finkensim.behaviours.Behaviour` or None for a Python function)
+    or its wall check needs a sensor that is not ``enabled`` (sensor name -> bool)."""
+    for sensor in (behaviour.sensors if behaviour is not None else ()):
+        if not enabled[sensor]:
+            raise ConfigError(f"behaviour.kind = {behaviour.name!r} needs {_SENSOR_KEYS[sensor]} = true")
     if wall_check_mode != WALL_CHECK_NONE:
         need = [("sonar.enabled", enabled["sonar"]), ("ranging.enabled", enabled["ranging"])]
         if wall_check_mode == WALL_CHECK_SEQUENCE:
@@ -52,7 +71,9 @@ def check_behaviour_sensors(cfg: Config, sensors: bool = True) -> None:
     and sweep files)."""
     enabled = {"sonar": bool(cfg.sonar.enabled), "ranging": bool(cfg.ranging.enabled), "imu": bool(cfg.imu.enabled)}
     mode = WallCheckParams.from_config(cfg).mode if sensors else WALL_CHECK_NONE
-    _require_sensors(cfg.behaviour.kind == "attraction_repulsion", mode, enabled, cfg.behaviour.wall_check)
+    enabled["down"] = bool(cfg.sonar.enabled and cfg.sonar.down_enabled)
+    kind = cfg.behaviour.kind
+    _require_sensors(BEHAVIOURS.get(kind), mode, enabled, cfg.behaviour.wall_check)
 
 
 class SwarmSim:
@@ -62,12 +83,15 @@ class SwarmSim:
     ----------
     cfg : Config, str, dict or None
         A :class:`~finkensim.config.Config`, a TOML path or text, a dict, or None for the defaults.
-    behaviour : str, callable or None
-        None (``behaviour.kind`` from the config), one of ``"hover"``, ``"random_walk"``,
-        ``"attraction_repulsion"``, or a Python function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)``
-        with cmd_vel (B, N, 2) m/s and cmd_yaw_rate (B, N) rad/s or None (module doc).
+    behaviour : str, Behaviour, callable or None
+        None (``behaviour.kind`` from the config), the name of a registered behaviour (``"hover"``,
+        ``"random_walk"``, ``"attraction_repulsion"`` or one added with
+        :func:`~finkensim.behaviours.register_behaviour`), a :class:`~finkensim.behaviours.Behaviour` (flown in the
+        compiled engine), or a Python function ``f(readings, memory, params) -> (cmd_vel, cmd_yaw_rate)`` with
+        cmd_vel (B, N, 2) m/s and cmd_yaw_rate (B, N) rad/s or None (module doc).
     params : object, optional
-        The ``params`` passed to a Python behaviour (default ``cfg.behaviour``).
+        The ``params`` passed to a Python behaviour (default ``cfg.behaviour``), or a registered behaviour's
+        parameter record (default ``behaviour.params(cfg)``).
     command_frame : str
         ``"body"`` (default) or ``"world"``: the frame of a Python behaviour's velocity commands.
     memory_factory : callable, optional
@@ -88,7 +112,9 @@ class SwarmSim:
     beacons : ndarray, shape (M, 2)
         Fixed ranging beacons, m.
     kind : str or callable
-        The behaviour.
+        The behaviour (its name, or the Python function).
+    behaviour : Behaviour or None
+        The registered behaviour flown in the compiled engine (None for a Python function).
     enabled : dict
         Sensor name → whether it runs.
     """
@@ -108,18 +134,15 @@ class SwarmSim:
         self.random_walk = RandomWalkParams.from_config(c.behaviour, c.arena.width, c.arena.length)
         self.beacons = np.ascontiguousarray(np.asarray(c.ranging.beacons, dtype=np.float64).reshape(-1, 2))
         kind = c.behaviour.kind if behaviour is None else behaviour
-        if callable(kind):
-            self.kind_code = KIND_PYTHON
-        elif kind in KIND_CODES:
-            self.kind_code = KIND_CODES[kind]
-        else:
-            raise ConfigError(f"behaviour = {kind!r}: expected one of {', '.join(map(repr, KIND_CODES))} "
-                              "or a function f(readings, memory, params)")
-        self.kind = kind
+        self.behaviour = None if callable(kind) and not isinstance(kind, Behaviour) else get_behaviour(kind)
+        self.kind = self.behaviour.name if self.behaviour is not None else kind
         if command_frame not in ("body", "world"):
             raise ConfigError(f"command_frame = {command_frame!r}: expected 'body' or 'world'")
         self.command_frame = command_frame
-        self.params = c.behaviour if params is None else params
+        if self.behaviour is None:
+            self.params = c.behaviour if params is None else params
+        else:
+            self.params = self.behaviour.params(c) if params is None else params
         self.memory_factory = memory_factory
         self.enabled = {"sonar": bool(c.sonar.enabled), "down": bool(c.sonar.enabled and c.sonar.down_enabled),
                         "ranging": bool(c.ranging.enabled), "imu": bool(c.imu.enabled)}
@@ -128,8 +151,8 @@ class SwarmSim:
                 raise ConfigError(f"sensors = False: behaviour {getattr(kind, '__name__', kind)!r} reads sensors; "
                                   f"expected one of {', '.join(map(repr, OPEN_LOOP_BEHAVIOURS))}")
             self.enabled = dict.fromkeys(self.enabled, False)
-        _require_sensors(self.kind_code == KIND_ATTRACTION, self.wall_check.mode if sensors else WALL_CHECK_NONE,
-                         self.enabled, c.behaviour.wall_check)
+        _require_sensors(self.behaviour, self.wall_check.mode if sensors else WALL_CHECK_NONE, self.enabled,
+                         c.behaviour.wall_check)
         self._work = threading.local()  # per thread: the compiled rollout's ranging rows, kept between calls
 
     def __getstate__(self):
@@ -193,8 +216,21 @@ class SwarmSim:
         B, N = ws.n_envs, ws.n_copters
         if memory is None:
             memory = self.memory_factory(B, N) if self.memory_factory is not None else {}
-        return SwarmState(world=ws, imu_bias=np.zeros((B, N, 3)), behaviour=BehaviourState.zeros(B, N, N_SONARS),
-                          memory=memory)
+        width = self.behaviour.memory if self.behaviour is not None else 0
+        return SwarmState(world=ws, imu_bias=np.zeros((B, N, 3)),
+                          behaviour=BehaviourState.zeros(B, N, N_SONARS, memory=width), memory=memory)
+
+    def models(self) -> Models:
+        """Every model the compiled engine reads, as one record.
+
+        Returns
+        -------
+        Models
+            The copter, hinge, wall geometry, sonar, ranging (+ beacons), IMU and wall-check records.
+        """
+        w = self.world
+        return Models(w.copter_params, w.hinge_params, w.geometry, self.sonar, self.ranging.params, self.beacons,
+                      self.imu, self.wall_check)
 
     # -- one step through the batched functions (the reference path; also runs Python behaviours) --
 
@@ -264,20 +300,27 @@ class SwarmSim:
         cmd_yaw_rate : ndarray, shape (B, N)
             Yaw-rate commands, rad/s.
         """
+        return self._commands(state, readings, state.behaviour.copy())
+
+    def _commands(self, state: SwarmState, readings: SensorReadings, memory: BehaviourState):
+        """:meth:`commands` with the behaviour's memory ``memory.commands`` (B, N, W) advanced in place."""
         ws = state.world
         B, N = ws.n_envs, ws.n_copters
-        if self.kind_code == KIND_ATTRACTION:
-            v_body, w = attraction_repulsion(readings.sonar, ws.seed, ws.env_ids, ws.step, self.attraction,
-                                             readings.wall)
-            return body_to_world(ws.yaw, v_body), w
-        if self.kind_code == KIND_RANDOM_WALK:
+        beh = self.behaviour
+        if beh is not None:  # a registered behaviour: its compiled commands, environment by environment
             v = np.zeros((B, N, 2))
             w = np.zeros((B, N))
-            random_walk_batch(np.ascontiguousarray(ws.pos), int(ws.seed), ws.env_ids, int(ws.step), self.random_walk,
-                              v, w)
-            return v, w
-        if self.kind_code == KIND_HOVER:
-            return np.zeros((B, N, 2)), np.zeros((B, N))
+            R = N + self.beacons.shape[0] if self.enabled["sonar"] and self.wall_check.mode != WALL_CHECK_NONE else 0
+            absent = {"sonar": np.full((B, N, N_SONARS), self.sonar.max_range), "sonar_down": np.zeros((B, N)),
+                      "ranging": np.zeros((B, N, R)), "imu_acc": np.zeros((B, N, 2)), "imu_gyro": np.zeros((B, N))}
+            seen = {k: getattr(readings, k) if getattr(readings, k) is not None else a for k, a in absent.items()}
+            for b in range(B):
+                inputs = BehaviourInput(ws.pos[b], ws.yaw[b], seen["sonar"][b], readings.wall[b],
+                                        seen["sonar_down"][b], seen["ranging"][b], seen["imu_acc"][b],
+                                        seen["imu_gyro"][b], int(ws.seed), int(ws.env_ids[b]), int(ws.step),
+                                        float(self.dt))
+                beh.commands(inputs, self.params, memory.commands[b], v[b], w[b])
+            return (body_to_world(ws.yaw, v) if beh.frame == "body" else v), w
         out = self.kind(readings, state.memory, self.params)
         if not isinstance(out, tuple) or len(out) != 2:
             raise ConfigError(f"behaviour {getattr(self.kind, '__name__', self.kind)!r} returned "
@@ -314,7 +357,7 @@ class SwarmSim:
     def _step(self, state: SwarmState):
         """:meth:`step` plus the sonars' ideal distances and hit types of :meth:`_sense`."""
         readings, bias, mem, ideal, hit = self._sense(state)
-        cmd_v, cmd_w = self.commands(state, readings)
+        cmd_v, cmd_w = self._commands(state, readings, mem)
         ws = self.world.step(state.world, cmd_v, cmd_w)
         new = SwarmState(world=ws, imu_bias=bias, behaviour=mem, memory=state.memory)
         return new, readings, (cmd_v, cmd_w), ideal, hit
@@ -383,19 +426,17 @@ class SwarmSim:
         dtypes = {"wall": np.bool_, "sonar_hit": np.int64}
         rec = {name: np.zeros(((T if name in names else 0),) + shapes[name], dtype=dtypes.get(name, np.float64))
                for name in RECORDABLE}
-        if self.kind_code == KIND_PYTHON or python:
+        if self.behaviour is None or python:
             new = self._python_rollout(state, T, names, rec)
         else:
             new = state.copy()
             w = new.world
-            run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, self.kind_code, float(self.dt),
+            run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, float(self.dt),
                           self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"],
                           self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS)
-            swarm_rollout(w.arrays(), new.memory_arrays(), run, Recording(**rec), self.world.copter_params,
-                          self.world.hinge_params, self.world.geometry, self.sonar, self.ranging.params, self.beacons,
-                          self.imu, self.random_walk, self.attraction, self.wall_check,
-                          engine_grid(self.world.grid, w.n_envs, w.n_copters))
-            new = replace(new, world=replace(w, step=w.step + T))
+            swarm_rollout(new.for_kernels(), run, kernel_record(rec), self.models(),
+                          engine_grid(self.world.grid, w.n_envs, w.n_copters), self.behaviour, self.params)
+            new = new._replace(world=w._replace(step=w.step + T))
         counters = {
             "collisions": new.world.collisions - ws0.collisions,
             "wall_contacts": new.world.wall_contacts - ws0.wall_contacts,

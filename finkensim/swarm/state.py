@@ -5,7 +5,6 @@ Shapes: B environments, N copters, S plates, M beacons, T recorded steps; 4 hori
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -13,15 +12,8 @@ import numpy as np
 from ..behaviours.wall_check import BehaviourState
 from ..world import WorldState
 
-__all__ = ["KIND_HOVER", "KIND_RANDOM_WALK", "KIND_ATTRACTION", "KIND_PYTHON", "KIND_CODES", "RECORDABLE",
-           "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "MemoryArrays", "RunSpec", "NO_RANGING_ROWS", "Recording"]
-
-KIND_HOVER = 0
-KIND_RANDOM_WALK = 1
-KIND_ATTRACTION = 2
-KIND_PYTHON = 3
-#: ``behaviour.kind`` → code of the built-in behaviours compiled into the loop.
-KIND_CODES = {"hover": KIND_HOVER, "random_walk": KIND_RANDOM_WALK, "attraction_repulsion": KIND_ATTRACTION}
+__all__ = ["RECORDABLE", "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "RunSpec",
+           "NO_RANGING_ROWS", "kernel_record", "Models"]
 
 #: Arrays :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` can record per step, with their
 #: shapes. Sensor arrays exist only when their sensor is enabled.
@@ -67,11 +59,12 @@ class SensorReadings(NamedTuple):
     env_ids: np.ndarray
 
 
-@dataclass(frozen=True)
-class SwarmState:
-    """World state plus everything the sensors and behaviours remember: ``imu_bias`` (B, N, 3) (acc x, y
-    m/s², gyro rad/s), ``behaviour`` (:class:`~finkensim.behaviours.wall_check.BehaviourState`), and
-    ``memory``: a user behaviour's object."""
+class SwarmState(NamedTuple):
+    """World state plus everything the sensors and behaviours remember, one record for Python and the kernels:
+    ``world`` (:class:`~finkensim.world.WorldState`), ``imu_bias`` (B, N, 3) (acc x, y m/s², gyro rad/s),
+    ``behaviour`` (:class:`~finkensim.behaviours.wall_check.BehaviourState`: wall-check memory, dead reckoning,
+    held sonar readings, the behaviour's own memory), and ``memory``: a Python behaviour's object (the kernels take
+    the state with ``memory=None``: :meth:`for_kernels`). A changed copy is ``state._replace(world=...)``."""
 
     world: WorldState
     imu_bias: np.ndarray
@@ -80,41 +73,45 @@ class SwarmState:
 
     @property
     def step(self) -> int:
+        """Steps taken since init."""
         return self.world.step
 
     @property
     def n_envs(self) -> int:
+        """B, the number of environments."""
         return self.world.n_envs
 
     @property
     def n_copters(self) -> int:
+        """N, copters per environment."""
         return self.world.n_copters
 
     def copy(self) -> "SwarmState":
         """Copies of every array (``memory`` is shared, not copied)."""
-        return replace(self, world=self.world.copy(), imu_bias=self.imu_bias.copy(), behaviour=self.behaviour.copy())
+        return self._replace(world=self.world.copy(), imu_bias=self.imu_bias.copy(), behaviour=self.behaviour.copy())
 
     def select(self, envs) -> "SwarmState":
         """The sub-batch ``envs`` as an independent state (``memory`` is shared)."""
-        return replace(self, world=self.world.select(envs), imu_bias=np.ascontiguousarray(self.imu_bias[envs]),
-                       behaviour=self.behaviour.select(envs))
+        return self._replace(world=self.world.select(envs), imu_bias=np.ascontiguousarray(self.imu_bias[envs]),
+                             behaviour=self.behaviour.select(envs))
 
-    def memory_arrays(self) -> "MemoryArrays":
-        """The IMU bias and behaviour memory as a :class:`MemoryArrays` record (the same arrays)."""
-        m = self.behaviour
-        return MemoryArrays(self.imu_bias, m.fail_count, m.wall, m.anchor, m.dr_pos, m.dr_vel, m.dr_yaw,
-                            m.wall_onsets, m.wall_readings, m.sonar_held)
+    def for_kernels(self) -> "SwarmState":
+        """The same arrays without the Python behaviour's ``memory`` (numba cannot type an arbitrary object)."""
+        return self._replace(memory=None)
 
 
-@dataclass(frozen=True)
-class SwarmRecord:
+class SwarmRecord(NamedTuple):
     """What :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` recorded: per-step arrays (see
     :data:`RECORDABLE`; None when not recorded), ``t`` (T,) s, and ``counters``: per-episode (B, N) int64
     counts over the rollout — ``collisions`` and ``wall_contacts`` (contact onsets), ``wall_onsets``
-    (wall flags set) and ``wall_readings`` (echoes judged to be walls)."""
+    (wall flags set) and ``wall_readings`` (echoes judged to be walls).
 
-    t: np.ndarray
-    counters: dict
+    One record for Python and the compiled rollout: the kernel fills one with ``t`` and ``counters`` None and every
+    :data:`RECORDABLE` array present, of leading dimension T when recorded and 0 when not
+    (:func:`kernel_record`)."""
+
+    t: np.ndarray | None
+    counters: dict | None
     pose: np.ndarray | None = None
     vel: np.ndarray | None = None
     acc: np.ndarray | None = None
@@ -135,29 +132,10 @@ class SwarmRecord:
 def concat_records(records: list["SwarmRecord"]) -> "SwarmRecord":
     """One :class:`SwarmRecord` of consecutive rollouts (the arrays joined along time, the counters summed)."""
     first = records[0]
-    arrays = {f.name: (None if getattr(first, f.name) is None else
-                       np.concatenate([getattr(r, f.name) for r in records], axis=0))
-              for f in fields(SwarmRecord) if f.name not in ("t", "counters")}
+    arrays = {name: (None if getattr(first, name) is None else np.concatenate([getattr(r, name) for r in records], axis=0))
+              for name in RECORDABLE}
     counters = {k: sum(r.counters[k] for r in records) for k in first.counters}
     return SwarmRecord(t=np.concatenate([r.t for r in records]), counters=counters, **arrays)
-
-
-class MemoryArrays(NamedTuple):
-    """The sensors' and behaviours' memory as one flat record for the kernels (views of a
-    :class:`SwarmState`): bias (B, N, 3) IMU bias; fail_count (B, N, 4) int64; wall (B, N, 4) bool;
-    anchor (B, N, 4, 3); dr_pos (B, N, 2) m; dr_vel (B, N, 2) m/s; dr_yaw (B, N) rad; wall_onsets,
-    wall_readings (B, N) int64; sonar_held (B, N, 4) m (see :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
-
-    bias: np.ndarray
-    fail_count: np.ndarray
-    wall: np.ndarray
-    anchor: np.ndarray
-    dr_pos: np.ndarray
-    dr_vel: np.ndarray
-    dr_yaw: np.ndarray
-    wall_onsets: np.ndarray
-    wall_readings: np.ndarray
-    sonar_held: np.ndarray
 
 
 #: RunSpec.ranging_rows of a kernel that takes no rows from it
@@ -166,7 +144,7 @@ NO_RANGING_ROWS = np.empty((0, 0, 0))
 
 class RunSpec(NamedTuple):
     """What a compiled rollout runs: seed, env_ids (B,) int64 global environment indices, step0 (the
-    state's step), n_steps, kind (``KIND_*``), dt s, which sensors run (sonar, down, ranging, imu), and
+    state's step), n_steps, dt s, which sensors run (sonar, down, ranging, imu), and
     ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
     reads is written in it first; (0, 0, 0) where the kernel takes no rows from it)."""
 
@@ -174,7 +152,6 @@ class RunSpec(NamedTuple):
     env_ids: np.ndarray
     step0: int
     n_steps: int
-    kind: int
     dt: float
     do_sonar: bool
     do_down: bool
@@ -183,22 +160,38 @@ class RunSpec(NamedTuple):
     ranging_rows: np.ndarray
 
 
-class Recording(NamedTuple):
-    """The output arrays of a compiled rollout, one per :data:`RECORDABLE` name (same order and shapes);
-    an array whose leading dimension is 0 instead of T is not recorded."""
+def kernel_record(arrays: dict) -> SwarmRecord:
+    """The record the compiled rollout fills: ``arrays`` (a :data:`RECORDABLE` name → array, leading dimension T
+    when recorded, 0 when not), ``t`` and ``counters`` None.
 
-    pose: np.ndarray
-    vel: np.ndarray
-    acc: np.ndarray
-    yaw_rate: np.ndarray
-    theta: np.ndarray
-    sonar: np.ndarray
-    sonar_ideal: np.ndarray
-    sonar_hit: np.ndarray
-    sonar_down: np.ndarray
-    ranging: np.ndarray
-    imu_acc: np.ndarray
-    imu_gyro: np.ndarray
-    wall: np.ndarray
-    cmd_vel: np.ndarray
-    cmd_yaw_rate: np.ndarray
+    Parameters
+    ----------
+    arrays : dict
+        Every :data:`RECORDABLE` name → its output array.
+
+    Returns
+    -------
+    SwarmRecord
+        The record.
+    """
+    return SwarmRecord(t=None, counters=None, **{name: arrays[name] for name in RECORDABLE})
+
+
+class Models(NamedTuple):
+    """Every model the engine's kernels read, as one record (static during a rollout).
+
+    copter (:class:`~finkensim.copters.CopterParams`), hinge (:class:`~finkensim.arena.HingeParams`), geometry
+    (:class:`~finkensim.arena.WallGeometry`), sonar (:class:`~finkensim.sensors.ultrasonic.SonarModel`), ranging
+    (``RangingModel.params``), beacons (M, 2) m, imu (:class:`~finkensim.sensors.imu.ImuModel`), wall_check
+    (:class:`~finkensim.behaviours.wall_check.WallCheckParams`). A new sensor's or effect's model is one more field
+    at the end. The flown behaviour's parameter record travels beside it (its type differs per behaviour: inside
+    this record it would make numba compile the shared sense step once per behaviour)."""
+
+    copter: Any
+    hinge: Any
+    geometry: Any
+    sonar: Any
+    ranging: Any
+    beacons: np.ndarray
+    imu: Any
+    wall_check: Any

@@ -9,8 +9,9 @@
   what was expected.
 * :mod:`.profiles` — the ``fast`` / ``thorough`` Hypothesis profiles (``FINKENSIM_HYPOTHESIS``).
 
-The plug-in checkers (``check_behaviour``, ``check_effect``, ``check_task``) join this namespace when the plug-in
-contracts exist; :func:`finkensim.checks.check_determinism` is the checker of a configuration today.
+* plug-in checkers (:mod:`finkensim.plugin_checks`) — :func:`~finkensim.plugin_checks.check_behaviour` and
+  :func:`~finkensim.plugin_checks.check_task` (``check_effect`` joins when the effect contract exists);
+  :func:`finkensim.checks.check_determinism` is the checker of a configuration.
 
 Importing this package loads neither Hypothesis nor pytest: ``strategies`` and ``profiles`` are imported on first
 use, so the assertions work without the test extras.
@@ -19,10 +20,11 @@ from __future__ import annotations
 
 import importlib
 
+from ..plugin_checks import PluginError, check_behaviour, check_task
 from .assertions import assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible
 
 __all__ = ["assert_inside_arena", "assert_no_overlap", "assert_reproducible", "assert_flightlog_valid",
-           "strategies", "profiles"]
+           "check_behaviour", "check_task", "PluginError", "strategies", "profiles"]
 
 _LAZY = ("strategies", "profiles")
 

@@ -9,7 +9,6 @@ lower-left region, plates hanging, and each effect's lower bounds.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Iterable
 
 import numpy as np
@@ -101,10 +100,10 @@ def world_states(draw, cfg=None, *, n_envs=(1, 3), separated: bool = False, clea
         heading = 2 * math.pi * _unit(draw, (B, N))
         vel = np.stack([speed * np.cos(heading), speed * np.sin(heading)], -1)
         w = math.radians(cfg.copters.max_yaw_rate_deg)
-        state = replace(state, vel=vel, yaw_rate=draw(hnp.arrays(np.float64, (B, N), elements=st.floats(-w, w))))
+        state = state._replace(vel=vel, yaw_rate=draw(hnp.arrays(np.float64, (B, N), elements=st.floats(-w, w))))
     if plates:
         amp = PLATE_ANGLE_MAX
-        state = replace(state, theta=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-amp, amp))),
+        state = state._replace(theta=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-amp, amp))),
                         omega=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-3.0, 3.0))),
                         integ=draw(hnp.arrays(np.float64, (B, S), elements=st.floats(-8.0, 8.0))))
     return state

@@ -23,7 +23,6 @@ DESIGN, with the engine's own substep-halving change as the error bound
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -169,8 +168,8 @@ def world_step(cfg, state, cmd_vel, cmd_yaw_rate=None):
     seg_a, seg_b = wall_segments(cfg)
     dist = segment_copter_distances(seg_a, seg_b, pos, p.radius)
     theta, omega, integ = hinge_step(state.theta, state.omega, state.integ, dist, p)
-    return replace(
-        state, pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate, theta=theta, omega=omega, integ=integ,
+    return state._replace(
+        pos=pos, vel=vel, acc=acc, yaw=yaw, yaw_rate=yaw_rate, theta=theta, omega=omega, integ=integ,
         in_wall=in_wall, in_collision=overlap, wall_contacts=wall_contacts, collisions=collisions,
         step=state.step + 1, env_ids=state.env_ids.copy(),
     )

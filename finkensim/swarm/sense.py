@@ -1,0 +1,106 @@
+"""The sense step, written once: what every copter of one environment senses at step k, in the order the hardware
+does it — plates → sonars → sonar hold → down sonar → ranging → IMU.
+
+Both engines call :func:`sense_env`: the closed loop (:func:`finkensim.swarm.kernel.engine_for`, then dead reckoning,
+the wall check and the behaviour) and the externally commanded step of the RL environments
+(:mod:`finkensim.swarm.control`), so their readings are equal by construction (``tests/test_envs.py`` keeps checking).
+
+**Adding a sensor-side effect** is one field and one call: the effect's model goes at the end of
+:class:`~finkensim.swarm.state.Models`, its per-copter history (if any) at the end of
+:class:`~finkensim.behaviours.wall_check.BehaviourState` (``SwarmState.behaviour``), its output buffer at the end of
+:class:`SenseBuffers`, and its kernel call into :func:`sense_env` at its place in the sequence (a correction of
+readings goes after the sensor it corrects, a latency history after all of them).
+
+The per-sensor kernels are called through their non-inlined twins (:mod:`finkensim.kernels.twin`): one compilation
+of each serves both engines.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from ..kernels.twin import INTERNAL, twin
+from ..sensors.imu import imu_env
+from ..sensors.ranging_kernels import ranging_grid_env
+from ..sensors.sonar_hold import hold_env
+from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
+
+__all__ = ["SenseBuffers", "sense_buffers", "sense_env", "plates_twin", "sonar_twin", "hold_twin", "down_twin",
+           "ranging_twin", "imu_twin"]
+
+plates_twin = twin(displaced_plates_env)
+sonar_twin = twin(ultrasonic_env)
+hold_twin = twin(hold_env)
+down_twin = twin(down_env)
+ranging_twin = twin(ranging_grid_env)
+imu_twin = twin(imu_env)
+
+
+class SenseBuffers(NamedTuple):
+    """One environment's readings (written by :func:`sense_env`) and the scratch arrays of its sensing.
+
+    Readings: sonar (N, 4) m; sonar_ideal (N, 4) m error-free distances; sonar_hit (N, 4) int64 hit kinds;
+    sonar_down (N,) m; ranging (N, N + M) m (or (N, 0)); imu_acc (N, 2) m/s² body frame; imu_gyro (N,) rad/s.
+    Scratch: plate_a, plate_b (S, 2) m displaced plate ends; sonar_rays (N, 4, 4); hit_point (N, 4, 2) m;
+    slot (N,) int64; altitude (N,) m flight heights of the down sonar. fill_ranging: write every ranging entry
+    (False: only those in range on the cell grid, when nothing else reads the rest)."""
+
+    sonar: np.ndarray
+    sonar_ideal: np.ndarray
+    sonar_hit: np.ndarray
+    sonar_down: np.ndarray
+    ranging: np.ndarray
+    imu_acc: np.ndarray
+    imu_gyro: np.ndarray
+    plate_a: np.ndarray
+    plate_b: np.ndarray
+    sonar_rays: np.ndarray
+    hit_point: np.ndarray
+    slot: np.ndarray
+    altitude: np.ndarray
+    fill_ranging: bool
+
+
+@njit(cache=True, **INTERNAL)
+def sense_buffers(sonar, ranging, imu_acc, imu_gyro, models, fill_ranging):
+    """:class:`SenseBuffers` around the given reading arrays (sonar (N, 4), ranging (N, R), imu_acc (N, 2), imu_gyro
+    (N,)) with fresh scratch arrays and a zeroed down-sonar row (N,); models: the
+    :class:`~finkensim.swarm.state.Models` (plate count, flight altitude)."""
+    N = sonar.shape[0]
+    S = models.geometry.plate_a.shape[0]
+    return SenseBuffers(sonar, np.empty((N, N_SONARS)), np.empty((N, N_SONARS), dtype=np.int64), np.zeros(N),
+                        ranging, imu_acc, imu_gyro, np.empty((S, 2)), np.empty((S, 2)), np.empty((N, N_SONARS, 4)),
+                        np.empty((N, N_SONARS, 2)), np.zeros(N, dtype=np.int64), np.full(N, models.sonar.altitude),
+                        fill_ranging)
+
+
+@njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.twin)
+def sense_env(b, k, state, run, models, buf, grid, grid_b):
+    """The sensors of environment b at step k → ``buf`` (:class:`SenseBuffers`), each when ``run`` enables it:
+    sonars on the plates displaced by their current angles (then held between measurements when
+    ``sonar.update_hz`` > 0: ``memory.sonar_held``), the down sonar, ranging to every copter and beacon, the IMU
+    (its bias ``state.imu_bias`` advances). state: :class:`~finkensim.swarm.state.SwarmState` (held readings in
+    ``state.behaviour.sonar_held``); run: :class:`~finkensim.swarm.state.RunSpec`; models:
+    :class:`~finkensim.swarm.state.Models`; grid, grid_b: the batch's cell grid and environment b's buffers."""
+    world = state.world
+    seed = run.seed
+    env = run.env_ids[b]
+    pos = world.pos[b]
+    yaw = world.yaw[b]
+    geo = models.geometry
+    sp = models.sonar
+    if run.do_sonar:
+        plates_twin(world.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, buf.plate_a, buf.plate_b)
+        sonar_twin(pos, yaw, buf.plate_a, buf.plate_b, geo.width, geo.length, sp, seed, env, k,
+                   (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, grid_b)
+        if sp.update_hz > 0.0:
+            hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
+    if run.do_down:
+        down_twin(buf.altitude, sp, seed, env, k, buf.sonar_down)
+    if run.do_ranging:
+        ranging_twin(pos, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b, buf.fill_ranging)
+    if run.do_imu:
+        imu_twin(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
+                 buf.imu_gyro)
