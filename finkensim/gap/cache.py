@@ -7,7 +7,7 @@ import numpy as np
 
 #: bytes of arrays each of a table's caches keeps (beside its count limit): the caches are most of a diagnosis's
 #: memory on a long log with many copters, and an evicted entry is only computed again, to the same numbers
-CACHE_BYTES = 48 * 2**20
+CACHE_BYTES = 32 * 2**20
 
 
 def nbytes_of(value) -> int:
