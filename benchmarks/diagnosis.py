@@ -6,8 +6,11 @@
   (``time.process_time``) of each trial after a warm-up trial (the kernels compiled or loaded first), and the
   verdict (right / wrong), so a change that cuts time also shows whether it changed an answer.
 * **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials ÷ the machine's cores.
+* **Where the trials' CPU goes**: CPU seconds of each effect's fits (:meth:`~finkensim.gap.diagnose.Diagnosis.fit`,
+  every round) and of the held-out scoring, summed over the trials.
 * **examples/gap_timing.py** (``finkensim gap`` on 10 copters × 10 min, in a subprocess): wall-clock seconds and peak
-  resident memory, as the example prints them.
+  resident memory, as the example prints them; and the same command on a flight of 1 h (:data:`MEMORY_DURATION`)
+  for the peak memory target.
 
 Timings are measured in this run on a machine that others may share: the load average before and after is printed
 with them. No test asserts a time.
@@ -15,7 +18,9 @@ with them. No test asserts a time.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
+import importlib
 import io
 import os
 import pstats
@@ -39,14 +44,54 @@ PAIRS_MATRIX_TRIALS = 1280  # the pairs matrix of today's catalogue (docs/valida
 TARGET_TRIAL_CPU = 3.0  # s, median warm trial
 TARGET_MATRIX_HOURS = 1.0
 TARGET_GAP_TIMING = 5.0  # s, examples/gap_timing.py
+TARGET_PEAK_GB = 1.0  # GB, peak resident memory of `finkensim gap` on 1 h of 10 copters
+MEMORY_DURATION = 3600.0  # s, the flight of the memory target
 WARMUP = ("wall_bulge+sonar_bias", 5)
 
 
+@contextlib.contextmanager
+def fit_clock():
+    """While active, CPU seconds (``time.process_time``) of :meth:`~finkensim.gap.diagnose.Diagnosis.fit` per effect
+    and of :meth:`~finkensim.gap.diagnose.Diagnosis.score_heldout` (key "(held-out scoring)") are summed into the
+    yielded dict (name → [calls, seconds]); the methods are restored on exit. Nested calls (a joint fit calls no
+    ``fit``) are not double counted: ``fit`` and ``score_heldout`` do not call each other."""
+    diagnose = importlib.import_module("finkensim.gap.diagnose")  # the package exports a function of that name
+    cls = diagnose.Diagnosis
+    fit, score = cls.fit, cls.score_heldout
+    clock: dict = {}
+
+    def add(name, t0):
+        c = clock.setdefault(name, [0, 0.0])
+        c[0] += 1
+        c[1] += time.process_time() - t0
+
+    def timed_fit(self, effect, current):
+        t0 = time.process_time()
+        try:
+            return fit(self, effect, current)
+        finally:
+            add(effect.name, t0)
+
+    def timed_score(self, res, *args, **kwargs):
+        t0 = time.process_time()
+        try:
+            return score(self, res, *args, **kwargs)
+        finally:
+            add("(held-out scoring)", t0)
+
+    cls.fit, cls.score_heldout = timed_fit, timed_score
+    try:
+        yield clock
+    finally:
+        cls.fit, cls.score_heldout = fit, score
+
+
 def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURATION, threads: int = 1,
-                profile: bool = False) -> list[dict]:
+                profile: bool = False, clock: dict | None = None) -> list[dict]:
     """CPU seconds and verdict of each (case, seed) trial of :data:`FLIGHTS` flights × ``duration`` s, after the
     ``warmup`` trial (None: none), on ``threads`` numba threads (the thread count is restored). ``profile``: also
-    each trial's 30 costliest functions by cumulative CPU time (cProfile on the CPU clock), text under "profile"."""
+    each trial's 30 costliest functions by cumulative CPU time (cProfile on the CPU clock), text under "profile".
+    ``clock``: a dict that receives the timed trials' CPU seconds per effect fitted (see :func:`fit_clock`)."""
     import numba
 
     from finkensim.gap.validate import run_case
@@ -64,8 +109,14 @@ def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURAT
                 t0 = time.process_time()
                 if prof is not None:
                     prof.enable()
-                row = run_case(case, seed, FLIGHTS, duration, conventions="random")
+                with fit_clock() as fits:
+                    row = run_case(case, seed, FLIGHTS, duration, conventions="random")
                 cpu = time.process_time() - t0
+                for name, (calls, seconds) in fits.items():
+                    if clock is not None:
+                        c = clock.setdefault(name, [0, 0.0])
+                        c[0] += calls
+                        c[1] += seconds
                 rows.append(dict(case=case, seed=seed, cpu_s=cpu, correct=bool(row["correct"]),
                                  effects=list(row["effects"]), threads=threads))
                 if prof is not None:
@@ -90,21 +141,35 @@ def gap_timing(duration: float = 600.0) -> dict:
     return dict(duration=duration, seconds=float(m.group(1)), peak_gb=float(m.group(2)))
 
 
-def run(log=print, with_gap_timing: bool = True) -> dict:
+def run(log=print, with_gap_timing: bool = True, with_memory: bool = True) -> dict:
+    """The section's measurements: :data:`TRIALS` timed (:func:`time_trials`) with their CPU per effect fitted,
+    the pairs matrix estimated, ``examples/gap_timing.py`` on 10 min (``with_gap_timing``) and on
+    :data:`MEMORY_DURATION` s (``with_memory``, for the peak memory). Returns the numbers and their "markdown"."""
     load0 = os.getloadavg()
-    trials = time_trials(log=log)
+    clock: dict = {}
+    trials = time_trials(log=log, clock=clock)
     cpu = [r["cpu_s"] for r in trials]
     res = dict(trials=trials, median_cpu_s=statistics.median(cpu), cores=os.cpu_count() or 1,
-               matrix_hours=statistics.mean(cpu) * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600)
+               matrix_hours=statistics.mean(cpu) * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600,
+               fits=clock)
     if with_gap_timing:
         log("diagnosis: examples/gap_timing.py (10 copters x 10 min)")
         res["gap_timing"] = gap_timing()
+    if with_memory:
+        log(f"diagnosis: examples/gap_timing.py (10 copters x {MEMORY_DURATION:g} s, peak memory)")
+        res["memory"] = gap_timing(MEMORY_DURATION)
     res["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
     res["markdown"] = markdown(res)
     return res
 
 
+def _met(ok: bool) -> str:
+    return "yes" if ok else "**no**"
+
+
 def markdown(res: dict) -> str:
+    """The section "Diagnosis" of ``make bench``'s report from :func:`run`'s numbers (a missing measurement reads
+    "not measured")."""
     L = ["## Diagnosis", "",
          f"Validation trials ({FLIGHTS} flights × {DURATION:g} s, random conventions, warm kernels, one numba thread "
          f"as in `gap-validate --executor process`); CPU seconds per trial (`benchmarks/diagnosis.py`). Load average "
@@ -112,27 +177,43 @@ def markdown(res: dict) -> str:
          "| case | seed | CPU s | verdict |", "|---|---:|---:|---|"]
     for r in res["trials"]:
         L.append(f"| {r['case']} | {r['seed']} | {r['cpu_s']:.1f} | {'right' if r['correct'] else 'wrong'} |")
-    gt = res.get("gap_timing")
+    fits = res.get("fits")
+    if fits:
+        total = sum(r["cpu_s"] for r in res["trials"])
+        L += ["", f"Where these trials' {total:.1f} CPU s go: each effect's fits (every round) and the held-out scoring "
+              "(the rest: simulating the flights, tables, locations, joint fits, the report).", "",
+              "| fitted | calls | CPU s | share |", "|---|---:|---:|---:|"]
+        for name, (calls, seconds) in sorted(fits.items(), key=lambda kv: -kv[1][1]):
+            L.append(f"| {name} | {calls} | {seconds:.1f} | {100 * seconds / total:.0f} % |")
+    gt, mem = res.get("gap_timing"), res.get("memory")
     L += ["", "| target | measured | met |", "|---|---:|---|",
           f"| warm validation trial ≤ {TARGET_TRIAL_CPU:g} s of CPU (median) | {res['median_cpu_s']:.1f} s | "
-          f"{'yes' if res['median_cpu_s'] <= TARGET_TRIAL_CPU else '**no**'} |",
+          f"{_met(res['median_cpu_s'] <= TARGET_TRIAL_CPU)} |",
           f"| pairs matrix ({PAIRS_MATRIX_TRIALS} trials) on {res['cores']} cores ≤ {TARGET_MATRIX_HOURS:g} h "
           f"(mean trial above × trials ÷ cores) | {res['matrix_hours']:.1f} h | "
-          f"{'yes' if res['matrix_hours'] <= TARGET_MATRIX_HOURS else '**no**'} |"]
+          f"{_met(res['matrix_hours'] <= TARGET_MATRIX_HOURS)} |"]
     if gt is None:
-        L.append("| examples/gap_timing.py ≤ 5 s | — | not measured |")
+        L.append(f"| examples/gap_timing.py ≤ {TARGET_GAP_TIMING:g} s | — | not measured |")
     elif "error" in gt:
-        L.append(f"| examples/gap_timing.py ≤ 5 s | error: {gt['error']} | — |")
+        L.append(f"| examples/gap_timing.py ≤ {TARGET_GAP_TIMING:g} s | error: {gt['error']} | — |")
     else:
         L.append(f"| examples/gap_timing.py (10 copters × {gt['duration']:g} s) ≤ {TARGET_GAP_TIMING:g} s | "
-                 f"{gt['seconds']:.1f} s, peak {gt['peak_gb']:.2f} GB | "
-                 f"{'yes' if gt['seconds'] <= TARGET_GAP_TIMING else '**no**'} |")
+                 f"{gt['seconds']:.1f} s, peak {gt['peak_gb']:.2f} GB | {_met(gt['seconds'] <= TARGET_GAP_TIMING)} |")
+    label = f"peak memory of `finkensim gap` on 10 copters × {MEMORY_DURATION / 3600:g} h ≤ {TARGET_PEAK_GB:g} GB"
+    if mem is None:
+        L.append(f"| {label} | — | not measured |")
+    elif "error" in mem:
+        L.append(f"| {label} | error: {mem['error']} | — |")
+    else:
+        L.append(f"| {label} | {mem['peak_gb']:.2f} GB ({mem['seconds']:.0f} s wall clock) | "
+                 f"{_met(mem['peak_gb'] <= TARGET_PEAK_GB)} |")
     return "\n".join(L) + "\n"
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-gap-timing", action="store_true", help="only the validation trials")
+    ap.add_argument("--no-memory", action="store_true", help="skip the 1 h flight of the peak memory target")
     ap.add_argument("--trials", nargs="+", default=None, metavar="CASE:SEED",
                     help="time these trials only (the first once more before, as the warm-up), e.g. latency:51")
     ap.add_argument("--threads", type=int, default=1, help="numba threads of the trials (default 1)")
@@ -147,7 +228,7 @@ def main(argv=None) -> int:
                   f"{'right' if r['correct'] else 'wrong'}; load average {os.getloadavg()[0]:.1f}")
             print(r.get("profile", ""), end="")
         return 0
-    print(run(log=log, with_gap_timing=not a.no_gap_timing)["markdown"])
+    print(run(log=log, with_gap_timing=not a.no_gap_timing, with_memory=not (a.no_gap_timing or a.no_memory))["markdown"])
     return 0
 
 

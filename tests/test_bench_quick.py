@@ -169,13 +169,23 @@ def test_diagnosis_section_reports_trials_and_targets():
     assertion: whether a target is met depends on the machine)."""
     from benchmarks import diagnosis
 
-    rows = diagnosis.time_trials((("null", 3),), log=lambda m: None, warmup=None, duration=20.0)
+    clock = {}
+    rows = diagnosis.time_trials((("null", 3),), log=lambda m: None, warmup=None, duration=20.0, clock=clock)
     assert [(r["case"], r["seed"]) for r in rows] == [("null", 3)]
     assert rows[0]["cpu_s"] > 0 and isinstance(rows[0]["correct"], bool)
-    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6,
-               gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5))
+    # every catalogued effect on the null trial's sensors was fitted at least once, each fit's CPU counted
+    assert "sonar_bias" in clock and clock["sonar_bias"][0] >= 1 and clock["sonar_bias"][1] > 0
+    assert sum(s for _, s in clock.values()) <= rows[0]["cpu_s"] + 1e-6
+    from finkensim.gap.diagnose import Diagnosis
+    assert Diagnosis.fit.__name__ == "fit"  # the clock is taken off again
+    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6, fits=clock,
+               gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5),
+               memory=dict(duration=3600.0, seconds=90.0, peak_gb=1.2))
     md = diagnosis.markdown(res)
     assert md.startswith("## Diagnosis") and "| null | 3 |" in md
     assert "pairs matrix (1280 trials) on 2 cores ≤ 1 h" in md and "| 0.5 h | yes |" in md
     assert "4.0 s, peak 0.50 GB | yes |" in md
-    assert "not measured" in diagnosis.markdown({**res, "gap_timing": None})
+    assert "10 copters × 1 h ≤ 1 GB | 1.20 GB (90 s wall clock) | **no** |" in md
+    assert "| sonar_bias | " in md
+    md = diagnosis.markdown({**res, "gap_timing": None, "memory": None})
+    assert md.count("not measured") == 2

@@ -34,7 +34,7 @@ from .limits import range_limits
 from .model import ModelParams
 from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
-from .scoring import brier, brier_gap, ensemble_terms_grouped
+from .scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
 from .stats import BlockBootstrap, fdr_significant
 
 SENSORS = ("ultrasonic", "ranging", "imu")
@@ -306,8 +306,7 @@ class Diagnosis:
             return mean, (math.nan, math.nan), math.nan
         lo, hi = np.quantile(rep, [0.025, 0.975])
         se = float(np.std(rep, ddof=1))
-        from scipy import stats as _st
-        p = float(_st.norm.sf(mean / se)) if se > 0 else (0.0 if mean > 0 else 1.0)
+        p = normal_sf(mean / se) if se > 0 else (0.0 if mean > 0 else 1.0)
         return mean, (float(lo), float(hi)), p
 
     def evaluate(self, p: ModelParams, which="heldout", sensors=None):

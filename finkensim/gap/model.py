@@ -87,8 +87,13 @@ class ModelParams:
         return replace(self, sonar=self.sonar._replace(**kw))
 
     def sensor_key(self, sensor: str) -> tuple:
-        """A hashable key of everything the predictive of ``sensor`` depends on."""
-        return tuple(self.field_key(k) for k in SHARED_FIELDS + SENSOR_FIELDS[sensor])
+        """A hashable key of everything the predictive of ``sensor`` depends on (computed once per sensor: a fit
+        asks for it at every evaluation, and the record is frozen; its arrays are never changed in place)."""
+        keys = self.__dict__.setdefault("_sensor_keys", {})
+        key = keys.get(sensor)
+        if key is None:
+            key = keys[sensor] = tuple(self.field_key(k) for k in SHARED_FIELDS + SENSOR_FIELDS[sensor])
+        return key
 
     def field_key(self, name: str):
         """A hashable key of the field ``name`` (arrays by content, the ranging model by its parts)."""

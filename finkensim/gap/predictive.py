@@ -21,6 +21,7 @@ from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
 from ..sensors.sonar_hold import held_steps
 from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
+from .cache import CACHE_BYTES, LRU, nbytes_of
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -38,26 +39,6 @@ def pose_sigmas(p: ModelParams, fl, M: int) -> tuple[float, float, int]:
     sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
     sy = fl.sigma_yaw if p.sigma_yaw is None else p.sigma_yaw
     return sx, sy, geometry_draws(sx, sy, M)
-
-
-class LRU:
-    """A small bounded cache (insertion-ordered dict, least recently used evicted first)."""
-
-    def __init__(self, size=16):
-        self.size = size
-        self.d = {}
-
-    def get(self, key):
-        v = self.d.pop(key, None)
-        if v is not None:
-            self.d[key] = v
-        return v
-
-    def put(self, key, value):
-        self.d[key] = value
-        while len(self.d) > self.size:
-            self.d.pop(next(iter(self.d)))
-        return value
 
 
 class RowSplit(NamedTuple):
@@ -120,7 +101,7 @@ def _gather(tab, flights, rows, ideal_fn, M):
         for o, a in zip(outs, arrays):
             gather_draws(a, split.sel, split.pos, split.copter, split.channel, o)
         period[split.sel] = arrays[0].shape[-1]
-    tab.gathered.put(key, ([arrays for _, arrays in parts], outs, period))
+    tab.gathered.put(key, ([arrays for _, arrays in parts], outs, period), nbytes_of((outs, period)))  # ideal: in cache
     return outs, period
 
 
@@ -146,11 +127,11 @@ class Table:
     channel_names: list
     seconds: np.ndarray = None  # time since the flight's start, s
     missing: np.ndarray | None = None  # ranging: (n_all,) bool for the dropout channel
-    cache: LRU = field(default_factory=LRU, repr=False)  # ideal arrays per flight and parameters
+    cache: LRU = field(default_factory=lambda: LRU(16, CACHE_BYTES), repr=False)  # ideal arrays per flight, parameters
     splits: LRU = field(default_factory=lambda: LRU(8), repr=False)  # rows split by flight
-    gathered: LRU = field(default_factory=lambda: LRU(4), repr=False)  # per-row ideal draws (large: few kept)
-    normals: LRU = field(default_factory=lambda: LRU(4), repr=False)  # pose draws' normals per flight and samples
-    errors: LRU = field(default_factory=lambda: LRU(4), repr=False)  # sonar echo errors per row set and error model
+    gathered: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # per-row ideal draws
+    normals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # pose draws' normals per flight
+    errors: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
 
     @property
     def n(self) -> int:
@@ -239,8 +220,8 @@ class SonarTable(Table):
         if z is None:  # σ-free, so shared by every evaluation on these samples (σ, walls, beam, sonar model)
             z = self.normals.put(zkey, np.empty((K, G, N, 3)))
             rp.pose_normal_table(times, N, G, seed, fl.index, z)
-        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape), fl.walls,
-                       fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt, z=z)
+        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape, times),
+                       fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt, z=z)
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
