@@ -81,12 +81,13 @@ class Flight:
         return self.poses_with_bulge(0.0, 1.0)
 
     def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0,
-                         shape: float = 2.0) -> "ReplayPoses":
+                         shape: float = 2.0, hinge: float = 0.0) -> "ReplayPoses":
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)^shape)`` m,
         d its distance to the nearest copter body, followed with time constant ``response`` s (the
-        ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0)."""
+        ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0; hinge: the weight of the walls' own law,
+        :func:`~finkensim.gap.bulge.bulge_target`)."""
         return ReplayPoses(self.pos, self.yaw, self.theta_unit,
-                           bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape))
+                           bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape, hinge))
 
     @property
     def walls(self) -> WallGeometry:

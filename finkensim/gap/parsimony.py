@@ -1,0 +1,163 @@
+"""A catch-all named beside a structured effect must earn its place against a more flexible fit of that effect.
+
+A catch-all (a noise scale, a constant bias, pose noise, constant cross-talk) absorbs part of any misfit: beside a wall
+bulge whose amplitude law differs from the catalogue's ``amplitude·exp(−(d/reach)^shape)`` it soaks up the shape
+mismatch, and the report names a tracking system and a sonar that are fine. So once the selection has named a
+catch-all beside a structured effect on a shared sensor, :func:`earn_place` refits the structured effect with a more
+flexible version of itself (:func:`flexible_version`: the bulge's law blended with the walls' own polynomial hinge
+law, :func:`~finkensim.gap.bulge.bulge_target`) without the catch-alls, and refits each catch-all on top of that; a
+catch-all stays only when it still clears the bar of a further effect (the selection's rule: an improvement of the
+held-out score of at least ``gap.accept_improvement`` in units of the current model's typical error, with a p-value
+under ``gap.alpha`` / the number of candidates). Every refit is a "tried" line of the waterfall and of
+``verdict.tried``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import effects as fx
+from .diagnose import FitResult
+from .fits import nelder_mead
+
+__all__ = ["flexible_version", "earn_place", "Earned"]
+
+#: hinge-law weight, reach factor: the starting points of the flexible bulge's search (the polynomial law ends at its
+#: threshold, so a bulge that law describes needs a longer reach than the Gaussian fitted to it)
+_BULGE_STARTS = ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (0.5, 1.6), (1.0, 2.2))
+
+
+def _fit_flexible_bulge(diag, effect, current, vals):
+    """The flexible bulge from the catalogue fit ``vals``: a few hinge weights and reaches, then Nelder–Mead over
+    every parameter from the best."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    reach = next(q for q in effect.params if q.name == "reach")
+    f = lambda v: diag._objective(effect, current, sensors, v)  # noqa: E731
+    cands = [{**vals, "hinge": h, "reach": min(reach.hi, vals["reach"] * k)} for h, k in _BULGE_STARTS]
+    scores = [f(c) for c in cands]
+    i = int(np.argmin(scores))
+    return nelder_mead(f, cands[i], effect.params, [cands[i][q.name] for q in effect.params], scores[i], maxfev=60)
+
+
+def flexible_version(name: str) -> fx.Effect | None:
+    """The more flexible version of the catalogued effect ``name`` (same name, one more parameter), or None.
+
+    ``wall_bulge``: its four parameters plus ``hinge`` in [0, 1], the weight of the walls' own polynomial amplitude
+    law (:func:`~finkensim.gap.bulge.bulge_target`; 0 is the catalogue's law, 1 the hinge law with ``reach`` as its
+    threshold).
+
+    Parameters
+    ----------
+    name : str
+        A catalogued effect's name.
+
+    Returns
+    -------
+    Effect or None
+        The flexible effect (fitted by its ``extra["fit"]``), None when the effect has none.
+    """
+    if name != "wall_bulge" or name not in fx.REGISTRY:
+        return None
+    wb = fx.REGISTRY[name]
+    return fx.Effect(
+        name, wb.sensors, wb.params + (fx.Param("hinge", 0.0, 1.0),),
+        lambda b, v: wb.apply(b, v).with_(bulge_hinge=float(v["hinge"])),
+        doc=wb.doc + "; its law blended with the walls' own polynomial hinge law (weight hinge)",
+        initial=lambda b: {**wb.start(b), "hinge": b.bulge_hinge}, expected_features=wb.expected_features,
+        extra={"fit": _fit_flexible_bulge})
+
+
+@dataclass
+class Earned:
+    """What :func:`earn_place` found.
+
+    Parameters
+    ----------
+    added : list of FitResult or None
+        The new selection (in the original order) when a catch-all was dropped, else None (the selection stands).
+    final : FitResult or None
+        The new selection's model, scored on the held-out flights (None when the selection stands).
+    steps : list of tuple
+        Waterfall steps ``(label, effect, rows_score, rows_gap, params)``, one per refit.
+    tried : list of dict
+        ``verdict.tried``: per catch-all {effect, beside, refit, improvement, p, threshold, kept}.
+    """
+
+    added: list | None = None
+    final: FitResult | None = None
+    steps: list = field(default_factory=list)
+    tried: list = field(default_factory=list)
+
+
+def _shares_sensor(a: str, b: str) -> bool:
+    return bool(set(fx.REGISTRY[a].sensors) & set(fx.REGISTRY[b].sensors))
+
+
+def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluated: list) -> Earned | None:
+    """Does each catch-all of the selection ``added`` earn its place beside a structured effect refitted flexibly?
+
+    Parameters
+    ----------
+    diag : Diagnosis
+        The diagnosis (fits and held-out scores).
+    added : list of FitResult
+        The selection, in the order added (each ``values`` its fitted parameters).
+    improvement : callable
+        ``improvement(cur_rows, new_rows) -> (mean, ci, p)``: the held-out improvement test of the selection.
+    further_bar : callable
+        ``further_bar(score) -> float``: the improvement a further effect needs on a model scoring ``score``.
+    n_candidates : int
+        The Bonferroni count of the test (the candidates a further effect is picked from).
+    evaluated : list
+        Every model's held-out rows so far; the refits' are appended.
+
+    Returns
+    -------
+    Earned or None
+        None when no catch-all sits beside a structured effect with a flexible version on a shared sensor.
+    """
+    flexible = [r.name for r in added if flexible_version(r.name) is not None]
+    catch = [r for r in added if fx.REGISTRY[r.name].catch_all and any(_shares_sensor(r.name, s) for s in flexible)]
+    if not catch:
+        return None
+    cfg = diag.cfg.gap
+    keep = [r for r in added if r not in catch]
+    chain, p = [], diag.base
+    for r in keep:
+        flex = flexible_version(r.name)
+        if flex is not None:
+            vals = flex.extra["fit"](diag, flex, p, {**r.values, "hinge": 0.0})
+            chain.append(FitResult(r.name, vals, flex.apply(p, vals), math.nan))
+        else:
+            chain.append(FitResult(r.name, r.values, fx.REGISTRY[r.name].apply(p, r.values), math.nan))
+        p = chain[-1].params
+    cur = diag.score_heldout(FitResult(chain[-1].name, chain[-1].values, p, math.nan))
+    evaluated.append(cur.rows_score)
+    refit = ", ".join(f"{n} (flexible)" if n in flexible else n for n in (r.name for r in keep))
+    out = Earned(steps=[(f"tried: {refit} without {', '.join(r.name for r in catch)}", None, cur.rows_score,
+                         cur.rows_gap, {r.name: dict(r.values) for r in chain})])
+    threshold = cfg.alpha / max(1, n_candidates)
+    kept = []
+    for c in catch:
+        res = diag.score_heldout(diag.fit(fx.REGISTRY[c.name], cur.params))
+        evaluated.append(res.rows_score)
+        imp, _, pv = improvement(cur.rows_score, res.rows_score)
+        bar = further_bar(cur.score_heldout)
+        stays = bool(imp >= bar and np.isfinite(pv) and pv < threshold)
+        out.tried.append({"effect": c.name, "beside": refit, "improvement": float(imp), "bar": float(bar),
+                          "p": float(pv), "threshold": threshold, "kept": stays})
+        diag.say(f"  {c.name} beside {refit}: improvement {imp:.4f} (bar {bar:.4f}), p = {pv:.3g}: "
+                 f"{'kept' if stays else 'dropped'}")
+        out.steps.append((f"tried: + {c.name} ({'kept' if stays else 'dropped'})", c.name, res.rows_score,
+                          res.rows_gap, dict(res.values)))
+        if stays:
+            kept.append(res)
+            cur = res
+    if len(kept) == len(catch):
+        return out
+    order = {r.name: i for i, r in enumerate(added)}
+    out.added = sorted(chain + kept, key=lambda r: order[r.name])
+    out.final = cur
+    return out
