@@ -3,12 +3,14 @@
 A catch-all (a noise scale, a constant bias, pose noise, constant cross-talk) absorbs part of any misfit: beside a wall
 bulge whose amplitude law differs from the catalogue's ``amplitude·exp(−(d/reach)^shape)`` it soaks up the shape
 mismatch, and the report names a tracking system and a sonar that are fine. So once the selection has named a
-catch-all beside a structured effect on a shared sensor, :func:`earn_place` refits the structured effect with a more
-flexible version of itself (:func:`flexible_version`: the bulge's law blended with the walls' own polynomial hinge
-law, :func:`~finkensim.gap.bulge.bulge_target`) without the catch-alls, and refits each catch-all on top of that; a
-catch-all stays only when it still clears the bar of a further effect (the selection's rule: an improvement of the
-held-out score of at least ``gap.accept_improvement`` in units of the current model's typical error, with a p-value
-under ``gap.alpha`` / the number of candidates). Every refit is a "tried" line of the waterfall and of
+catch-all beside a structured effect on a shared sensor, :func:`earn_place` takes each such catch-all out (the last
+added first), refits the structured effect with a more flexible version of itself on top of the rest
+(:func:`flexible_version`: the bulge's law blended with the walls' own polynomial hinge law,
+:func:`~finkensim.gap.bulge.bulge_target`), and keeps the catch-all only when the selection with it still beats that
+model by the bar of a further effect (the selection's rule: an improvement of the held-out score of at least
+``gap.accept_improvement`` in units of the typical error of the model without it, with a p-value under ``gap.alpha``
+/ the number of candidates). The selection is compared as it was fitted (a catch-all refitted alone on top of a bulge
+can stop partway along the valley the two share, which a joint fit reached). Every refit is a "tried" line of the waterfall and of
 ``verdict.tried``.
 """
 from __future__ import annotations
@@ -123,41 +125,51 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
     if not catch:
         return None
     cfg = diag.cfg.gap
-    keep = [r for r in added if r not in catch]
-    chain, p = [], diag.base
-    for r in keep:
-        flex = flexible_version(r.name)
-        if flex is not None:
-            vals = flex.extra["fit"](diag, flex, p, {**r.values, "hinge": 0.0})
-            chain.append(FitResult(r.name, vals, flex.apply(p, vals), math.nan))
-        else:
-            chain.append(FitResult(r.name, r.values, fx.REGISTRY[r.name].apply(p, r.values), math.nan))
-        p = chain[-1].params
-    cur = diag.score_heldout(FitResult(chain[-1].name, chain[-1].values, p, math.nan))
-    evaluated.append(cur.rows_score)
-    refit = ", ".join(f"{n} (flexible)" if n in flexible else n for n in (r.name for r in keep))
-    out = Earned(steps=[(f"tried: {refit} without {', '.join(r.name for r in catch)}", None, cur.rows_score,
-                         cur.rows_gap, {r.name: dict(r.values) for r in chain})])
     threshold = cfg.alpha / max(1, n_candidates)
-    kept = []
-    for c in catch:
-        res = diag.score_heldout(diag.fit(fx.REGISTRY[c.name], cur.params))
-        evaluated.append(res.rows_score)
-        imp, _, pv = improvement(cur.rows_score, res.rows_score)
-        bar = further_bar(cur.score_heldout)
+    out = Earned()
+    sel, cur = list(added), diag.score_heldout(FitResult(added[-1].name, added[-1].values, _model(diag, added),
+                                                         math.nan))
+    for c in reversed(catch):  # the last added first: it had the least to explain
+        others = [r for r in sel if r is not c]
+        chain, reduced = _flexible_without(diag, others)
+        evaluated.append(reduced.rows_score)
+        imp, _, pv = improvement(reduced.rows_score, cur.rows_score)
+        bar = further_bar(reduced.score_heldout)
         stays = bool(imp >= bar and np.isfinite(pv) and pv < threshold)
-        out.tried.append({"effect": c.name, "beside": refit, "improvement": float(imp), "bar": float(bar),
+        beside = ", ".join(f"{r.name} (flexible)" if r.name in flexible else r.name for r in others)
+        out.tried.append({"effect": c.name, "beside": beside, "improvement": float(imp), "bar": float(bar),
                           "p": float(pv), "threshold": threshold, "kept": stays})
-        diag.say(f"  {c.name} beside {refit}: improvement {imp:.4f} (bar {bar:.4f}), p = {pv:.3g}: "
+        out.steps.append((f"tried: {beside} without {c.name} ({c.name} {'kept' if stays else 'dropped'})", None,
+                          reduced.rows_score, reduced.rows_gap, {r.name: dict(r.values) for r in chain}))
+        diag.say(f"  {c.name} against {beside}: improvement {imp:.4f} (bar {bar:.4f}), p = {pv:.3g}: "
                  f"{'kept' if stays else 'dropped'}")
-        out.steps.append((f"tried: + {c.name} ({'kept' if stays else 'dropped'})", c.name, res.rows_score,
-                          res.rows_gap, dict(res.values)))
-        if stays:
-            kept.append(res)
-            cur = res
-    if len(kept) == len(catch):
+        if not stays:
+            sel, cur = chain, reduced
+    if len(sel) == len(added):
         return out
-    order = {r.name: i for i, r in enumerate(added)}
-    out.added = sorted(chain + kept, key=lambda r: order[r.name])
-    out.final = cur
+    out.added, out.final = sel, cur
     return out
+
+
+def _model(diag, selection):
+    """The configured model with every FitResult of ``selection`` applied at its values, in order."""
+    p = diag.base
+    for r in selection:
+        e = flexible_version(r.name) if "hinge" in r.values else fx.REGISTRY[r.name]
+        p = e.apply(p, r.values)
+    return p
+
+
+def _flexible_without(diag, selection):
+    """``selection`` with each effect that has a flexible version refitted with it on top of all the others (at
+    their values); returns (the new selection in the same order, its model scored on the held-out flights)."""
+    chain = list(selection)
+    for k, r in enumerate(chain):
+        flex = flexible_version(r.name)
+        if flex is None:
+            continue
+        rest = _model(diag, chain[:k] + chain[k + 1:])
+        vals = flex.extra["fit"](diag, flex, rest, {"hinge": 0.0, **r.values})
+        chain[k] = FitResult(r.name, vals, flex.apply(rest, vals), math.nan)
+    last = chain[-1]
+    return chain, diag.score_heldout(FitResult(last.name, last.values, _model(diag, chain), math.nan))
