@@ -7,10 +7,10 @@ catch-all beside a structured effect on a shared sensor, :func:`earn_place` take
 added first), refits the structured effect with a more flexible version of itself on top of the rest
 (:func:`flexible_version`: the bulge's law blended with the walls' own polynomial hinge law,
 :func:`~finkensim.gap.bulge.bulge_target`), and keeps the catch-all only when the selection with it still beats that
-model by the bar of a further effect (the selection's rule: an improvement of the held-out score of at least
+model by the bar of a further effect, the structured effect refitted flexibly with the catch-all in place too (the selection's rule: an improvement of the held-out score of at least
 ``gap.accept_improvement`` in units of the typical error of the model without it, with a p-value under ``gap.alpha``
-/ the number of candidates). The selection is compared as it was fitted (a catch-all refitted alone on top of a bulge
-can stop partway along the valley the two share, which a joint fit reached). Every refit is a "tried" line of the waterfall and of
+/ the number of candidates). The catch-all keeps its fitted value and the bulge is refitted around it (a catch-all
+refitted alone on top of a bulge can stop partway along the valley the two share, which a joint fit reached). Every refit is a "tried" line of the waterfall and of
 ``verdict.tried``.
 """
 from __future__ import annotations
@@ -127,12 +127,13 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
     cfg = diag.cfg.gap
     threshold = cfg.alpha / max(1, n_candidates)
     out = Earned()
-    sel, cur = list(added), diag.score_heldout(FitResult(added[-1].name, added[-1].values, _model(diag, added),
-                                                         math.nan))
+    sel = list(added)
     for c in reversed(catch):  # the last added first: it had the least to explain
         others = [r for r in sel if r is not c]
+        # both sides with the structured effects refitted flexibly: the test isolates the catch-all
+        _, cur = _flexible_without(diag, sel)
         chain, reduced = _flexible_without(diag, others)
-        evaluated.append(reduced.rows_score)
+        evaluated += [cur.rows_score, reduced.rows_score]
         imp, _, pv = improvement(reduced.rows_score, cur.rows_score)
         bar = further_bar(reduced.score_heldout)
         stays = bool(imp >= bar and np.isfinite(pv) and pv < threshold)
@@ -144,10 +145,10 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
         diag.say(f"  {c.name} against {beside}: improvement {imp:.4f} (bar {bar:.4f}), p = {pv:.3g}: "
                  f"{'kept' if stays else 'dropped'}")
         if not stays:
-            sel, cur = chain, reduced
+            sel, final = chain, reduced
     if len(sel) == len(added):
         return out
-    out.added, out.final = sel, cur
+    out.added, out.final = sel, final
     return out
 
 
