@@ -97,7 +97,8 @@ def _shares_sensor(a: str, b: str) -> bool:
     return bool(set(fx.REGISTRY[a].sensors) & set(fx.REGISTRY[b].sensors))
 
 
-def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluated: list) -> Earned | None:
+def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluated: list,
+               gain=None) -> Earned | None:
     """Does each catch-all of the selection ``added`` earn its place beside a structured effect refitted flexibly?
 
     Parameters
@@ -114,6 +115,10 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
         The Bonferroni count of the test (the candidates a further effect is picked from).
     evaluated : list
         Every model's held-out rows so far; the refits' are appended.
+    gain : callable, optional
+        ``gain(old, new) -> float``: the share of a gap sensor's configured-model gap that going from FitResult
+        ``old`` to ``new`` removes; a catch-all removing at least ``gap.accept_gain`` is material and stays on a
+        significant improvement (the selection's first rule).
 
     Returns
     -------
@@ -136,9 +141,13 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
         evaluated += [cur.rows_score, reduced.rows_score]
         imp, _, pv = improvement(reduced.rows_score, cur.rows_score)
         bar = further_bar(reduced.score_heldout)
-        stays = bool(imp >= bar and np.isfinite(pv) and pv < threshold)
+        share = gain(reduced, cur) if gain is not None else 0.0
+        # the selection's rule: significant, and material (a share of the gap) or beyond a further effect's bar
+        stays = bool(np.isfinite(pv) and pv < cfg.alpha and imp > 0 and (
+            share >= cfg.accept_gain or (imp >= bar and pv < threshold)))
         beside = ", ".join(f"{r.name} (flexible)" if r.name in flexible else r.name for r in others)
         out.tried.append({"effect": c.name, "beside": beside, "improvement": float(imp), "bar": float(bar),
+                          "gap_share": float(share),
                           "p": float(pv), "threshold": threshold, "kept": stays})
         out.steps.append((f"tried: {beside} without {c.name} ({c.name} {'kept' if stays else 'dropped'})", None,
                           reduced.rows_score, reduced.rows_gap, {r.name: dict(r.values) for r in chain}))

@@ -214,7 +214,9 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                 added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint lead pair")
 
     # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/parsimony.py)
-    earned = earn_place(diag, added, improvement, further_bar, max(1, len(first) - 1), evaluated) if (
+    earned = earn_place(diag, added, improvement, further_bar, max(1, len(first) - 1), evaluated, lambda a, b: max(
+        _share(a.rows_gap, b.rows_gap, gap_sensors, per_sensor), _share(a.rows_score, b.rows_score, gap_sensors,
+                                                                          per_sensor))) if (
         significant and len(added) > 1) else None
     if earned is not None:
         steps += [(label, n, rs, rg, _clean_nested(v)) for label, n, rs, rg, v in earned.steps]
