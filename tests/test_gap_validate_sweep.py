@@ -14,7 +14,7 @@ from finkensim.flightlog import FlightLog
 from finkensim.gap import validate_sweep
 from finkensim.gap.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
 from finkensim.gap.validate import CASES, all_pairs, get_case, pair_case
-from finkensim.gap.validate_tables import confusion, pair_grid, wilson
+from finkensim.gap.validate_tables import confusion, exactly_withheld, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
@@ -132,6 +132,29 @@ def test_laplace_noise_has_the_configured_standard_deviation():
     # Laplace excess kurtosis 3 (Gaussian 0). SE of the sample kurtosis √((μ8/μ2⁴ − 4μ4μ6/μ2⁵ + 4μ4³/μ2⁶ − μ4²/μ2⁴)/n)
     # with the Laplace moments μ2k = (2k)!·b^2k: √(1188/n) = 0.027, 5 SE = 0.14 (4.5 % of 3)
     assert_within_se(stats.kurtosis(e), 3.0, math.sqrt(1188 / n), what="Laplace noise excess kurtosis")
+
+
+def test_exactly_the_withheld_effects_counts_extras_and_misses_per_case_and_for_pairs():
+    def row(case, effects, correct=True):
+        return {"case": case, "effects": effects, "correct": correct, "significant": True, "named": (effects or [None])[0],
+                "unexplained": not effects, "location_ok": None, "param_error": math.nan, "shrink_heldout": 1.0,
+                "seconds": 1.0}
+
+    assert exactly_withheld(row("wall_bulge", ["wall_bulge"]))
+    assert not exactly_withheld(row("wall_bulge", ["wall_bulge", "pose_noise"]))  # named first, one extra
+    assert exactly_withheld(row("sonar_bias+latency", ["latency", "sonar_bias"]))
+    assert not exactly_withheld(row("sonar_bias+latency", ["latency", "sonar_bias", "sound_speed"]))
+    assert not exactly_withheld(row("sonar_bias+latency", ["latency"], correct=False))
+    assert exactly_withheld(row("foreign", []))  # a control: right, and no catalogued effect named
+    assert exactly_withheld({"case": "null", "correct": True})  # rows from before the column: no "effects" key
+    rows = [row("wall_bulge", ["wall_bulge"])] * 3 + [row("wall_bulge", ["wall_bulge", "sonar_bias"])]
+    rows += [row("sonar_bias+latency", ["sonar_bias", "latency"]), row("sonar_bias+latency", ["sonar_bias", "latency", "beam_width"])]
+    _, md = confusion(rows)
+    lo, hi = wilson(3, 4)
+    assert f"| wall_bulge | 4 | 100% (51%–100%) | 75% ({lo:.0%}–{hi:.0%}) |" in md
+    assert "exactly the withheld effects" in md.splitlines()[0]
+    lo, hi = wilson(1, 2)
+    assert f"naming exactly the two withheld effects (none missing, none extra): 50.0% ({lo:.1%}–{hi:.1%}), 1 of 2." in pair_grid(rows)
 
 
 def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):

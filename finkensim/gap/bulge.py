@@ -6,9 +6,52 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..arena import amplitude_law
+
+
+def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, shape: float = 2.0,
+                 hinge: float = 0.0) -> np.ndarray:
+    """The plates' target displacement (same shape as ``plate_distance``) m: ``amplitude · ((1 − hinge) ·
+    exp(−(d/reach)^shape) + hinge · f(1 − d/reach) / f(1))``, with f the seed's polynomial amplitude law of the hinged
+    walls (:func:`finkensim.arena.amplitude_law`, 0 for d ≥ reach: ``reach`` plays the hinge's threshold).
+
+    hinge 0 (the default) is the ``wall_bulge`` effect's catalogue law, hinge 1 the law the project's own walls follow
+    (a hinge driven toward ``maxAmplitude·f(x)``, x = (threshold − d)/threshold); the family in between is the
+    flexible version a catch-all must beat before it is named beside a bulge (:mod:`finkensim.gap.parsimony`).
+
+    Parameters
+    ----------
+    plate_distance : numpy.ndarray
+        d, m: each plate's distance to the nearest copter body, any shape.
+    amplitude : float
+        Displacement (m) at d = 0.
+    reach : float
+        m > 0: the distance scale (the hinge law's threshold).
+    shape : float
+        > 0: the exponent of the catalogue law (2 a Gaussian).
+    hinge : float
+        In [0, 1]: the weight of the hinge law.
+
+    Returns
+    -------
+    numpy.ndarray
+        The target displacement, m, shaped like ``plate_distance``.
+    """
+    if not reach > 0:
+        raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
+    if not shape > 0:
+        raise ValueError(f"bulge shape = {shape!r}: expected > 0")
+    if not 0.0 <= hinge <= 1.0:
+        raise ValueError(f"bulge hinge = {hinge!r}: expected a weight in [0, 1]")
+    target = amplitude * np.exp(-(plate_distance / reach) ** shape)
+    if hinge == 0.0:
+        return target
+    x = np.clip(1.0 - plate_distance / reach, 0.0, 1.0)
+    return (1.0 - hinge) * target + hinge * amplitude * amplitude_law(x) / float(amplitude_law(1.0))
+
 
 def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float, response: float = 0.0,
-                       t: np.ndarray | None = None, shape: float = 2.0) -> np.ndarray:
+                       t: np.ndarray | None = None, shape: float = 2.0, hinge: float = 0.0) -> np.ndarray:
     """Displacement (T, S_p) m of each plate, plate_distance (T, S_p) m from the nearest copter body: the target
     ``amplitude · exp(−(d/reach)^shape)`` — the ``wall_bulge`` effect's form, set by what a log shows (how far
     readings shorten, how close a copter must come, how sharply the bulge ends, how slowly the curtain follows),
@@ -16,14 +59,11 @@ def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: floa
     reach (a hinged plate driven toward a near-constant angle within a threshold distance looks like that). With
     ``response`` τ > 0 s the plates follow the target as a first-order lag on the log's times t (T,) s:
     x_k = x_{k−1} + (1 − exp(−Δt_k/τ))·(target_k − x_{k−1}), starting at rest on the first target (a curtain keeps
-    bending after the copter has passed, as the hinge does)."""
+    bending after the copter has passed, as the hinge does). ``hinge`` in [0, 1] blends in the walls' own polynomial
+    law (:func:`bulge_target`; 0, the default, is the catalogue's law alone)."""
     if amplitude == 0.0:
         return np.zeros_like(plate_distance)
-    if not reach > 0:
-        raise ValueError(f"bulge reach = {reach!r}: expected > 0 m")
-    if not shape > 0:
-        raise ValueError(f"bulge shape = {shape!r}: expected > 0")
-    target = amplitude * np.exp(-(plate_distance / reach) ** shape)
+    target = bulge_target(plate_distance, amplitude, reach, shape, hinge)
     if response == 0.0:
         return target
     if not response > 0 or t is None or t.shape[0] != target.shape[0]:

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import optimize
 
+from .stated import stated_floor
+
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
 
@@ -52,6 +54,9 @@ def joint_fit(diag: "Diagnosis", effects, values, maxfev: int = 40):
     chain = _Chain(effects)
     flat = {f"{e.name}.{k}": v for e, vals in zip(effects, values) for k, v in vals.items()}
     group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.params if not q.integer]
+    floors = {f"{e.name}.{k}": v for e in effects for k, v in stated_floor(diag.flights, e.name).items()}
+    group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
+    flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}
     sensors = sorted({s for e in effects for s in e.sensors if s in diag.tables})
     f = lambda v: diag._objective(chain, diag.base, sensors, v)  # noqa: E731
     out = nelder_mead(f, flat, group, [flat[q.name] for q in group], f(flat), maxfev=maxfev) if group else flat
@@ -117,11 +122,14 @@ def _fit_dropout(diag: "Diagnosis", effect, current, vals):
 
 def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
-    coarse grid, then refined by a bounded scalar search between the best point's grid neighbours."""
+    coarse grid, then refined by a bounded scalar search between the best point's grid neighbours; never below the
+    noise the logs state (:func:`~finkensim.gap.stated.stated_floor`: a best below it is searched again between the
+    stated value and the next grid point)."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     sx0 = current.sigma_xy if current.sigma_xy is not None else float(np.mean([f.sigma_xy for f in diag.flights]))
     sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
     v = {"sigma_xy": sx0, "sigma_yaw": sy0}
+    floor = stated_floor(diag.flights, effect.name)  # never less noise than a log states
     f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
     for name, grid in (("sigma_xy", [0.0, 0.001, 0.002, 0.004, 0.007, 0.012, 0.02, 0.035, 0.05]),
                        ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
@@ -135,6 +143,15 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
                                          options={"xatol": 0.02 * (hi - lo), "maxiter": 10})
             if r.fun < scores[i]:
                 v[name] = float(r.x)
+        if v[name] < floor.get(name, 0.0):  # the best lies below the stated noise: search between it and the next point
+            lo = floor[name]
+            hi = min((c for c in grid if c > lo), default=lo)
+            v[name] = lo
+            if hi > lo:
+                r = optimize.minimize_scalar(lambda c: f({**v, name: float(c)}), bounds=(lo, hi), method="bounded",
+                                             options={"xatol": 0.02 * (hi - lo), "maxiter": 10})
+                if r.fun < f(v):
+                    v[name] = float(r.x)
     return v
 
 

@@ -48,6 +48,9 @@ class ModelParams:
     copter is near the line of sight. dropout_a, dropout_b 1/m: a ranging reading is missing with
     probability sigmoid(a + b·distance) (a = −inf: never). Constant IMU biases are fields of the ``imu`` record
     (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
+    bulge_hinge in [0, 1]: the weight of the walls' own polynomial law in the bulge's target
+    (:func:`~finkensim.gap.bulge.bulge_target`; 0 = the catalogue's law, set only by the flexible refit of
+    :mod:`finkensim.gap.parsimony`).
     """
 
     sonar: SonarModel
@@ -68,6 +71,7 @@ class ModelParams:
     dropout_b: float = 0.0
     latency_ranging: float = 0.0
     latency_imu: float = 0.0
+    bulge_hinge: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: Config) -> "ModelParams":
@@ -107,7 +111,8 @@ class ModelParams:
 
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
-    "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar"),
+    "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar",
+                   "bulge_hinge"),
     "ranging": ("ranging", "nlos_bias", "nlos_width", "dropout_a", "dropout_b", "latency_ranging"),
     "imu": ("imu", "latency_imu"),
 }

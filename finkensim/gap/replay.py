@@ -81,10 +81,12 @@ class Flight:
         return self.poses_with_bulge(0.0, 1.0)
 
     def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0,
-                         shape: float = 2.0, times: np.ndarray | None = None) -> "ReplayPoses":
+                         shape: float = 2.0, hinge: float = 0.0,
+                         times: np.ndarray | None = None) -> "ReplayPoses":
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)^shape)`` m,
         d its distance to the nearest copter body, followed with time constant ``response`` s (the
-        ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0).
+        ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0; hinge: the weight of the walls' own law,
+        :func:`~finkensim.gap.bulge.bulge_target`).
 
         ``times`` (K,) int64 log indices: only the displacement at these samples is wanted (the others are zero,
         never read), so a bulge that follows at once (``response`` 0, each sample's own) is computed at them only
@@ -92,9 +94,10 @@ class Flight:
         response time needs every earlier sample and is computed at all of them."""
         if times is None or response != 0.0 or amplitude == 0.0:
             return ReplayPoses(self.pos, self.yaw, self.theta_unit,
-                               bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape))
+                               bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape,
+                                                  hinge))
         bulge = np.zeros_like(self.plate_distance)  # untouched pages of zeros cost no memory
-        bulge[times] = bulge_displacement(self.plate_distance[times], amplitude, reach, 0.0, None, shape)
+        bulge[times] = bulge_displacement(self.plate_distance[times], amplitude, reach, 0.0, None, shape, hinge)
         return ReplayPoses(self.pos, self.yaw, self.theta_unit, bulge)
 
     @property

@@ -220,6 +220,8 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
         params = ", ".join(f"{k}={_fmt(x, 3)}" + (" (at bound: widen or suspect another effect)"
                                                    if k in priv.at_bound.get(e["name"], ()) else "")
                            for k, x in e["params"].items())
+        params += "".join(f"; {k}: {_fmt(x, 3)} stated, excess {_fmt(e['excess'][k], 3)}"
+                          for k, x in e.get("stated", {}).items())
         lines.append(f"| {e['name']} | {params} | {_fmt(e['score_heldout'], 4)} | {_fmt(e['gap_after_train'])} | "
                      f"{_fmt(e['gap_after_heldout'])} | {_fmt(e['shrink_heldout'], 2)} |")
     if "waterfall" in figs:
@@ -227,6 +229,10 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
     for w in priv.waterfall:
         lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])} (its calibration part "
                      f"{_fmt(w.get('calibration_gap'))})")
+    for t in report["verdict"].get("tried", ()):
+        lines.append(f"- tried {t['effect']} beside {t['beside']}: held-out improvement {_fmt(t['improvement'], 4)} "
+                     f"(needs {_fmt(t['bar'], 4)}), p = {t['p']:.3g} (needs < {t['threshold']:.3g}): "
+                     f"{'kept' if t['kept'] else 'dropped'}")
     if "correction" in figs:
         lines += ["", "## Data-driven correction", "", f"![correction]({figs['correction']})"]
     lines.append("")

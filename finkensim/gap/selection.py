@@ -21,9 +21,11 @@ from .correction import fit_correction
 from .diagnose import Diagnosis, FitResult
 from .fits import joint_fit
 from .honesty import check_plausible, flag_bounds, sample_sizes, too_little_data
+from .parsimony import earn_place
 from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .shrink import ShrinkMeter
+from .stated import stated_fields
 
 __all__ = ["run_diagnosis", "check_effects"]
 
@@ -211,6 +213,17 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                     and second_matters(pair, len(first))):
                 added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint lead pair")
 
+    # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/parsimony.py)
+    earned = earn_place(diag, added, improvement, further_bar, max(1, len(first) - 1), evaluated, lambda a, b: max(
+        _share(a.rows_gap, b.rows_gap, gap_sensors, per_sensor), _share(a.rows_score, b.rows_score, gap_sensors,
+                                                                          per_sensor))) if (
+        significant and len(added) > 1) else None
+    if earned is not None:
+        steps += [(label, n, rs, rg, _clean_nested(v)) for label, n, rs, rg, v in earned.steps]
+        if earned.added is not None:
+            added, final = earned.added, earned.final
+            current, cur_scores, cur_gaps, cur_score = final.params, final.rows_score, final.rows_gap, final.score_heldout
+
     # how much each model explains: calibration and proper score, against what the catalogue built
     meter = ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated)
     gap_before = meter.c0
@@ -225,7 +238,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         waterfall.append(w)
     effects = [{"name": r.name, "params": _clean(r.values), "score_heldout": r.score_heldout,
                 "gap_after_train": r.gap_train, "gap_after_heldout": meter.gap_after(r.rows_score, r.rows_gap),
-                "shrink_heldout": meter.shrink(r.rows_score, r.rows_gap)} for r in first]
+                "shrink_heldout": meter.shrink(r.rows_score, r.rows_gap), **stated_fields(diag.flights, r.name, r.values)}
+               for r in first]
     bounds = flag_bounds(effects, base)
     total_shrink = meter.shrink(cur_scores, cur_gaps) if significant else 0.0
     names_added = [r.name for r in added]
@@ -240,6 +254,8 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         diag.say(f"  best effects remove {100 * total_shrink:.0f} % of the gap on {', '.join(gap_sensors)}: unexplained")
     elif significant:
         verdict.update(effect=names_added[0], effects=names_added, ambiguous=ambiguous, shrink_heldout=total_shrink)
+    if earned is not None:
+        verdict["tried"] = earned.tried
     little = too_little_data(sizes, {s: s in gap_sensors for s in sizes})
     correction, correction_block, correction_skipped = None, None, {}
     if verdict["unexplained"] and not with_correction:
@@ -461,6 +477,11 @@ def _best_joint_pair(diag, first_added, others, evaluated):
         if best is None or res.score_heldout < best[-1].score_heldout:
             best = [FitResult(a.name, va, pa, math.nan), res]
     return best
+
+
+def _clean_nested(values: dict) -> dict:
+    """:func:`_clean` of a values dict, or of each of a dict of them (effect name → values)."""
+    return {k: _clean(v) for k, v in values.items()} if all(isinstance(v, dict) for v in values.values()) else _clean(values)
 
 
 def _clean(values: dict) -> dict:

@@ -1,5 +1,6 @@
 """The tables of a withheld-effect validation run (:mod:`finkensim.gap.validate`): the per-case summary with Wilson
-intervals and the confusion matrix (:func:`confusion`), and the pair trials as an effect × effect grid
+intervals and the confusion matrix (:func:`confusion`), the share naming exactly the withheld effects
+(:func:`exactly_withheld`), and the pair trials as an effect × effect grid
 (:func:`pair_grid`; :func:`pair_tally` / :func:`pair_count` also feed the figure of :mod:`.validate_plot`)."""
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 
 from .validate import CASES
 
-__all__ = ["wilson", "confusion", "pair_tally", "pair_count", "pair_grid"]
+__all__ = ["wilson", "withheld", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
 
 
 def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -19,6 +20,44 @@ def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
     c = (p + z * z / (2 * n)) / d
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
     return max(0.0, c - h), min(1.0, c + h)
+
+
+def withheld(case: str) -> set[str]:
+    """The catalogued effects a validation case withholds: both of a pair ``"a+b"``, the effect of a single case, none
+    for a control (``null``, ``foreign``, ``foreign_multipath``).
+
+    Parameters
+    ----------
+    case : str
+        The case's name (a row's ``"case"``).
+
+    Returns
+    -------
+    set of str
+        Effect names.
+    """
+    if "+" in case:
+        return set(case.split("+"))
+    c = CASES.get(case)
+    return {c.effect} if c is not None and c.effect is not None else set()
+
+
+def exactly_withheld(row: dict) -> bool:
+    """A trial named exactly the withheld effects: it is right (``row["correct"]``) and ``verdict.effects`` holds
+    every withheld effect and nothing else (a control: no effect at all). Computed from the row, so it also reads
+    rows written before the column existed.
+
+    Parameters
+    ----------
+    row : dict
+        One row of ``trials.jsonl`` (:func:`~finkensim.gap.validate.run_case`).
+
+    Returns
+    -------
+    bool
+        No effect missing and none extra.
+    """
+    return bool(row["correct"]) and set(row.get("effects") or ()) == withheld(row["case"])
 
 
 def confusion(rows: list[dict]):
@@ -33,10 +72,12 @@ def confusion(rows: list[dict]):
         df["correction_shrink"] = math.nan
     if "found_by" not in df:  # rows from before the targeted test
         df["found_by"] = None
+    df["exactly"] = [exactly_withheld(r) for r in rows]
     df["verdict"] = [("no gap" if not r["significant"] else ("unexplained" if r["unexplained"] else r["named"]))
                      for r in rows]
     summary = df.groupby("case", sort=False).agg(
         trials=("case", "size"), correct_n=("correct", "sum"), correct=("correct", "mean"),
+        exactly_n=("exactly", "sum"),
         location_right=("location_ok", lambda s: s.dropna().astype(float).mean() if s.notna().any() else float("nan")),
         param_error_median=("param_error", "median"), shrink_mean=("shrink_heldout", "mean"),
         shrink_max=("shrink_heldout", "max"), correction_shrink=("correction_shrink", "mean"),
@@ -46,19 +87,21 @@ def confusion(rows: list[dict]):
     def pct(x):
         return "n/a" if x != x else f"{x:.0%}"
 
-    lines = ["| case | trials | correct (Wilson 95 % CI) | no location flagged | location right | parameter error "
+    lines = ["| case | trials | correct (Wilson 95 % CI) | exactly the withheld effects (Wilson 95 % CI) | no location flagged | location right | parameter error "
              "(median) | shrink mean / max | correction shrink | found by the targeted test | s per trial |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for case, r in summary.iterrows():
         lo, hi = wilson(int(r["correct_n"]), int(r["trials"]))
         pe = "n/a" if r["param_error_median"] != r["param_error_median"] else f"{r['param_error_median']:.1%}"
-        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | {pct(r['flagged_none'])} | "
+        lines.append(f"| {case} | {int(r['trials'])} | {r['correct']:.0%} ({lo:.0%}–{hi:.0%}) | "
+                     f"{_share(int(r['exactly_n']), int(r['trials']), '.0%')} | {pct(r['flagged_none'])} | "
                      f"{pct(r['location_right'])} | {pe} | {r['shrink_mean']:.2f} / {r['shrink_max']:.2f} | "
                      f"{pct(r['correction_shrink'])} | {int(r['targeted'])} | {r['seconds_mean']:.0f} |")
     n, k = len(df), int(df["correct"].sum())
     lo, hi = wilson(k, n)
     loc = df["location_ok"].dropna().astype(float)
     lines.append(f"| **all {summary.shape[0]} cases** | {n} | {k / n:.1%} ({lo:.1%}–{hi:.1%}) | "
+                 f"{_share(int(df['exactly'].sum()), n, '.1%')} | "
                  f"{pct(float((df['flagged_locations'].fillna(0) == 0).mean()))} | "
                  f"{pct(loc.mean() if len(loc) else float('nan'))} | | {df['shrink_heldout'].mean():.2f} / "
                  f"{df['shrink_heldout'].max():.2f} | | {int((df['found_by'] == 'targeted').sum())} | {df['seconds'].mean():.0f} |")
@@ -72,6 +115,12 @@ def confusion(rows: list[dict]):
     return df, "\n".join(lines) + "\n"
 
 
+def _share(k: int, n: int, fmt: str) -> str:
+    """``k/n`` as a percentage with its Wilson 95 % interval."""
+    lo, hi = wilson(k, n)
+    return f"{k / n:{fmt}} ({lo:{fmt}}–{hi:{fmt}})"
+
+
 def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]:
     """The pair trials of ``rows``: (the effects they combine, in catalogue order; {"a+b": (trials with both named,
     trials)})."""
@@ -82,6 +131,12 @@ def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]
             tally[r["case"]] = (k + bool(r["correct"]), n + 1)
     effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
     return effects, tally
+
+
+def _exact_pairs(rows: list[dict]) -> tuple[int, int]:
+    """(pair trials naming exactly their two effects, pair trials) of ``rows``."""
+    pairs = [r for r in rows if "+" in r["case"]]
+    return sum(exactly_withheld(r) for r in pairs), len(pairs)
 
 
 def pair_count(tally: dict[str, tuple[int, int]], a: str, b: str) -> tuple[int, int]:
@@ -109,5 +164,7 @@ def pair_grid(rows: list[dict], target: float = 0.9) -> str:
     lo, hi = wilson(*tally[worst])
     lines += ["", f"Pairs with both effects named in ≥ {target:.0%} of their trials: {met} of {len(tally)}; lowest "
               f"{worst} {tally[worst][0]}/{tally[worst][1]} (Wilson 95 % {lo:.0%}–{hi:.0%}); trials per pair "
-              f"{min(n for _, n in tally.values())}–{max(n for _, n in tally.values())}."]
+              f"{min(n for _, n in tally.values())}–{max(n for _, n in tally.values())}.",
+              f"Pair trials naming exactly the two withheld effects (none missing, none extra): "
+              f"{_share(*_exact_pairs(rows), '.1%')}, {_exact_pairs(rows)[0]} of {_exact_pairs(rows)[1]}."]
     return "\n".join(lines) + "\n"
