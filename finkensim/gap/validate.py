@@ -6,8 +6,11 @@ noise on the logged poses (declared in ``meta``). Effects the simulator models i
 walls, geometric and constant cross-talk, beam width, Rayleigh scale) are switched on in its
 config; the others are applied to the simulated log by code written here, independently of the
 diagnosis's own effect models. Controls: ``null`` (nothing withheld: no gap should be found)
-and two effects outside the catalogue, ``foreign`` (a ranging clock-scale error) and
-``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``.
+and two effects outside the catalogue, ``foreign`` (a ranging error that ripples with distance, as two-ray
+ground-reflection interference does: no catalogued effect depends on distance periodically) and
+``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``. The radio effects
+(``ranging_bias``, ``_scale``, ``_antenna_offset``, ``_node_delay``, ``_nlos_tail``) are flown by the simulator
+through their ``[ranging]`` config keys.
 """
 from __future__ import annotations
 
@@ -146,11 +149,31 @@ def _post_sonar_multipath(p_ghost, lo, hi):
     return f
 
 
-def _post_ranging_scale(k):
+def _post_ranging_ripple(amplitude, wavelength, phase):
+    """A ranging error that ripples with the true distance d: amplitude·sin(2π·d/wavelength + phase) m (two-ray
+    interference of a ground reflection); no catalogued effect depends on distance periodically."""
     def f(log, cfg, rng):
-        inside = log.extras["ranging_ideal"] < cfg.ranging.max_range
-        log.ranging = np.where(inside, log.ranging * k, log.ranging)
+        d = log.extras["ranging_ideal"]
+        inside = d < cfg.ranging.max_range
+        add = amplitude * np.sin(2.0 * np.pi * d / wavelength + phase)
+        out = np.where(inside, np.maximum(log.ranging + add, 0.0), log.ranging)
+        N = d.shape[1]
+        out[:, np.arange(N), np.arange(N)] = 0.0
+        log.ranging = out
     return f
+
+
+def _antenna_case(r):
+    """A tag 0.1-0.25 m off the centre in a random body-frame direction."""
+    radius, angle = float(r.uniform(0.1, 0.25)), float(r.uniform(-np.pi, np.pi))
+    x, y = radius * math.cos(angle), radius * math.sin(angle)
+    return {"ranging.antenna_offset": [x, y, 0.0]}, None, {"x": x, "y": y}
+
+
+def _node_delay_case(r):
+    """Every node's own delay in ±(0.05 … 0.2) m (nodes beyond the swarm are unused)."""
+    delays = [_sign(r) * float(r.uniform(0.05, 0.2)) for _ in range(10)]
+    return {"ranging.node_delay": delays}, None, {f"delay_{k}": d for k, d in enumerate(delays)}
 
 
 CASES: dict[str, Case] = {
@@ -191,8 +214,19 @@ CASES: dict[str, Case] = {
         {}, _post_imu_bias(bx := _sign(r) * float(r.uniform(0.05, 0.2)), by := _sign(r) * float(r.uniform(0.05, 0.2)),
                            bg := _sign(r) * float(r.uniform(0.01, 0.05))),
         {"acc_x": bx, "acc_y": by, "gyro": bg}), "imu"),
+    "ranging_bias": Case("ranging_bias", "ranging_bias", lambda r: (
+        {"ranging.bias": (b := _sign(r) * float(r.uniform(0.08, 0.2)))}, None, {"bias": b}), "ranging"),
+    "ranging_scale": Case("ranging_scale", "ranging_scale", lambda r: (
+        {"ranging.scale": (k := 1.0 + _sign(r) * float(r.uniform(0.06, 0.12)))}, None, {"factor": k}), "ranging"),
+    "ranging_antenna_offset": Case("ranging_antenna_offset", "ranging_antenna_offset", _antenna_case, "ranging"),
+    "ranging_node_delay": Case("ranging_node_delay", "ranging_node_delay", _node_delay_case, "ranging"),
+    "ranging_nlos_tail": Case("ranging_nlos_tail", "ranging_nlos_tail", lambda r: (
+        {"ranging.nlos_tail_probability": (p := float(r.uniform(0.1, 0.25))),
+         "ranging.nlos_tail_mean": (m := float(r.uniform(0.2, 0.5)))}, None, {"probability": p, "mean": m}),
+        "ranging"),
     "foreign": Case("foreign", None, lambda r: (
-        {}, _post_ranging_scale(float(r.uniform(1.08, 1.15))), {}), "ranging"),
+        {}, _post_ranging_ripple(float(r.uniform(0.1, 0.15)), float(r.uniform(0.5, 0.9)),
+                                 float(r.uniform(0.0, 2.0 * np.pi))), {}), "ranging"),
     "foreign_multipath": Case("foreign_multipath", None, lambda r: (
         {}, _post_sonar_multipath(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ultrasonic"),
 }

@@ -65,7 +65,7 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
                    (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
     if run.do_ranging:
         # fill passed explicitly: the same signature as swarm_env's call, so one compilation serves both
-        ranging_twin(pos_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b, True)
+        ranging_twin(pos_b, yaw_b, beacons, seed, env, k, rp, obs.ranging[b], grid, grid_b, True)
     if run.do_imu:
         imu_twin(w.acc[b], yaw_b, w.yaw_rate[b], bias[b], ip, seed, env, k, obs.imu_acc[b], obs.imu_gyro[b])
 

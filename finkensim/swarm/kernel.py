@@ -179,7 +179,7 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
             if run.do_down:
                 down_twin(alt, sp, seed, env, k, down)
             if run.do_ranging:
-                ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
+                ranging_twin(pos, yaw, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
             if run.do_imu:
                 imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
                 dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
