@@ -10,7 +10,9 @@ keys of the same names (``calibrate``). Registered when :mod:`finkensim.gap.effe
 - ``ranging_antenna_offset``: the tag's (x, y) position in the body frame, shared by every copter;
 - ``ranging_node_delay``: a constant per node (``delay_k`` for node k = copter k of the log; a pair reads the sum),
   fitted by least absolute deviations of the readings from the model's median on the node-incidence design (the
-  minimum-norm solution where a sum is all the log pins down, e.g. one copter ranging to fixed anchors);
+  minimum-norm solution where a sum is all the log pins down, e.g. one copter ranging to fixed anchors). It is a
+  catch-all: equal delays are a constant offset, so it absorbs any constant offset, per node or not; it is named
+  only when no structured effect (``ranging_bias`` among them) comes within the tie tolerance of it;
 - ``ranging_nlos_tail``: a positive exponential extra length with a probability, independent of other copters.
 """
 from __future__ import annotations
@@ -87,7 +89,7 @@ def _cal_antenna(v: dict, cfg: Config) -> dict:
 register(Effect(
     "ranging_bias", ("ranging",), (Param("bias", -1.0, 1.0, unit="m"),),
     lambda b, v: b.with_ranging(bias=_radio(b)["bias"] + v["bias"]),
-    doc="a constant offset on every ranging reading", initial=lambda b: {"bias": 0.0}, catch_all=True,
+    doc="a constant offset on every ranging reading", initial=lambda b: {"bias": 0.0},
     calibrate=lambda v, cfg: {"ranging.bias": cfg.ranging.bias + v["bias"]}))
 register(Effect(
     "ranging_scale", ("ranging",), (Param("factor", 0.8, 1.25),),
@@ -109,7 +111,7 @@ register(Effect(
         "two nodes' delays",
     initial=lambda b: {f"delay_{k}": 0.0 for k in range(MAX_DELAY_NODES)},
     calibrate=lambda v, cfg: {"ranging.node_delay": _plus_delays(cfg.ranging.node_delay, v)},
-    extra={"fit": fit_node_delay}))
+    catch_all=True, extra={"fit": fit_node_delay}))
 register(Effect(
     "ranging_nlos_tail", ("ranging",),
     (Param("probability", 0.0, 0.5), Param("mean", 0.02, 1.5, unit="m")),
