@@ -6,8 +6,8 @@ noise on the logged poses (declared in ``meta``). Effects the simulator models i
 walls, geometric and constant cross-talk, beam width, Rayleigh scale) are switched on in its
 config; the others are applied to the simulated log by code written here, independently of the
 diagnosis's own effect models. Controls: ``null`` (nothing withheld: no gap should be found)
-and two effects outside the catalogue, ``foreign`` (a ranging error that ripples with distance, as two-ray
-ground-reflection interference does: no catalogued effect depends on distance periodically) and
+and two effects outside the catalogue, ``foreign`` (false first-path detection: 8–15 % of ranging readings read
+0.3–1 m short; the catalogue's NLOS tail reads long, a bias or scale moves every reading) and
 ``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``. The radio effects
 (``ranging_bias``, ``_scale``, ``_antenna_offset``, ``_node_delay``, ``_nlos_tail``) are flown by the simulator
 through their ``[ranging]`` config keys.
@@ -149,17 +149,16 @@ def _post_sonar_multipath(p_ghost, lo, hi):
     return f
 
 
-def _post_ranging_ripple(amplitude, wavelength, phase):
-    """A ranging error that ripples with the true distance d: amplitude·sin(2π·d/wavelength + phase) m (two-ray
-    interference of a ground reflection); no catalogued effect depends on distance periodically."""
+def _post_ranging_early(p_early, lo, hi):
+    """False first-path detection: with probability p a reading triggers on noise before the true first path and
+    reads short by U(lo, hi) m (clipped at 0). No catalogued effect reads short by a random amount in a fraction
+    of readings (the NLOS tail reads long; a bias or a scale moves every reading)."""
     def f(log, cfg, rng):
         d = log.extras["ranging_ideal"]
-        inside = d < cfg.ranging.max_range
-        add = amplitude * np.sin(2.0 * np.pi * d / wavelength + phase)
-        out = np.where(inside, np.maximum(log.ranging + add, 0.0), log.ranging)
+        hit = (d < cfg.ranging.max_range) & (rng.random(d.shape) < p_early)
         N = d.shape[1]
-        out[:, np.arange(N), np.arange(N)] = 0.0
-        log.ranging = out
+        hit[:, np.arange(N), np.arange(N)] = False
+        log.ranging = np.where(hit, np.maximum(log.ranging - rng.uniform(lo, hi, d.shape), 0.0), log.ranging)
     return f
 
 
@@ -225,8 +224,7 @@ CASES: dict[str, Case] = {
          "ranging.nlos_tail_mean": (m := float(r.uniform(0.2, 0.5)))}, None, {"probability": p, "mean": m}),
         "ranging"),
     "foreign": Case("foreign", None, lambda r: (
-        {}, _post_ranging_ripple(float(r.uniform(0.1, 0.15)), float(r.uniform(0.5, 0.9)),
-                                 float(r.uniform(0.0, 2.0 * np.pi))), {}), "ranging"),
+        {}, _post_ranging_early(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ranging"),
     "foreign_multipath": Case("foreign_multipath", None, lambda r: (
         {}, _post_sonar_multipath(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ultrasonic"),
 }
