@@ -104,7 +104,7 @@ def t_ranging(pos, seed, p, reps):
     beacons = np.empty((0, 2))
     for r in range(reps):
         for b in range(B):
-            ranging_env(pos[b], beacons, seed, b, r, p, out)
+            ranging_env(pos[b], np.zeros(n), beacons, seed, b, r, p, out)
 
 
 @njit(cache=True, error_model="numpy")

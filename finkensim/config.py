@@ -175,6 +175,27 @@ class RangingConfig(_Section):
     mixture_file: str = _f("", doc="JSON/NPZ mixture in metres; empty = Parlow's K=100 model shipped with finkensim")
     seed_variance_factor: float = _f(10.0, "", 0.0, 1e6, lo_open=True, doc="seed mode: the script's variance fudge")
     beacons: tuple[tuple[float, float], ...] = _f((), "m", -1e6, 1e6, doc="fixed ranging tags [[x, y], ...]")
+    # radio effects (finkensim.sensors.ranging_radio; each the twin of a gap effect of the same name); defaults: none
+    bias: float = _f(0.0, "m", -5.0, 5.0, doc="constant offset added to every reading (the gap effect ranging_bias)")
+    scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every reading: a clock-rate error (ranging_scale)")
+    node_delay: tuple[float, ...] = _f((), "m", -5.0, 5.0, doc="constant delay per node, copters 0..N-1 then "
+                                       "beacons; a pair reads the sum; nodes beyond the list have none "
+                                       "(ranging_node_delay)")
+    antenna_offset: tuple[float, ...] = _f((0.0, 0.0, 0.0), "m", -2.0, 2.0, length=3,
+                                           doc="the radio tag's position (x, y, z) in every copter's body frame: "
+                                               "readings are tag to tag (ranging_antenna_offset)")
+    antenna_offset_per_copter: tuple[tuple[float, float], ...] = _f(
+        (), "m", -2.0, 2.0, doc="copter k's own extra tag offset [x, y] in its body frame, [[x, y], ...]; copters "
+                                "beyond the list have none")
+    nlos_bias: float = _f(0.0, "m", -1.0, 2.0, doc="reading longer by nlos_bias*exp(-(c/nlos_width)^2), c the line of "
+                          "sight's clearance from a third copter's centre (ranging_nlos)")
+    nlos_width: float = _f(0.2, "m", 0.0, 10.0, lo_open=True, doc="clearance scale of the NLOS near a third copter")
+    nlos_tail_probability: float = _f(0.0, "", 0.0, 1.0, doc="probability of a positive exponential extra length, "
+                                      "independent of other copters: obstacles, people (ranging_nlos_tail)")
+    nlos_tail_mean: float = _f(0.3, "m", 0.0, 10.0, lo_open=True, doc="mean of that exponential extra length")
+    dropout_a: float = _f(-100.0, "", -100.0, 100.0, doc="a reading is lost (NaN) with probability "
+                          "sigmoid(dropout_a + dropout_b*distance); -100 = never (ranging_dropout)")
+    dropout_b: float = _f(0.0, "1/m", -100.0, 100.0, doc="distance slope of the dropout probability")
 
 
 @dataclass(frozen=True)

@@ -98,7 +98,7 @@ def sensor_blocks(cfg: Config, rec: SwarmRecord, seed: int, env_ids, step0: int 
         if ideal:
             extras["ranging_ideal"] = np.stack([
                 ranging_readings(np.ascontiguousarray(rec.pose[k, :, :, :2]), beacons, seed, env_ids,
-                                 step0 + k, model, ideal=True)[0, :, :N] for k in range(T)])
+                                 step0 + k, model, ideal=True, yaw=rec.pose[k, :, :, 2])[0, :, :N] for k in range(T)])
     if cfg.imu.enabled:
         out["imu_acc"] = np.ascontiguousarray(rec.imu_acc[:, 0])
         out["imu_gyro"] = np.ascontiguousarray(rec.imu_gyro[:, 0])

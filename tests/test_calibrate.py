@@ -13,7 +13,7 @@ from finkensim.gap import effects as fx
 from finkensim.gap.model import ModelParams
 
 #: catalogued effects the simulator cannot fly yet (issue "Close the loop", item 1); shrinking this set is the work
-NOT_FLOWN_YET = {"wall_bulge", "latency", "ranging_nlos", "ranging_dropout"}
+NOT_FLOWN_YET = {"wall_bulge", "latency"}
 #: effects whose counterpart is the flight-log writer, not the simulated world (tracking noise)
 LOG_WRITER = {"pose_noise"}
 

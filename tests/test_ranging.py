@@ -204,7 +204,7 @@ def test_ranging_env_equals_reference(models, mode):
     pos = rng.uniform(-0.5, 3.0, (1, 5, 2))
     beacons = rng.uniform(0.0, 3.0, (2, 2))
     out = np.full((5, 7), np.nan)
-    ranging_env(pos[0], beacons, np.int64(21), np.int64(9), np.int64(4), models[mode].params, out)
+    ranging_env(pos[0], np.zeros(5), beacons, np.int64(21), np.int64(9), np.int64(4), models[mode].params, out)
     want = naive_ranging_readings(pos, beacons, 21, [9], 4, models[mode])[0]
     np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 if mode == "seed" else 0)
 

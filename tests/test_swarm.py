@@ -144,7 +144,7 @@ def test_ranging_env_equals_ranging_readings(mode):
     beacons = np.array([[0.1, 0.2], [2.9, 3.5]])
     env_ids = np.array([3, 1, 4, 1, 5])
     out = np.empty((5, 4, 6))
-    ranging_batch(pos, beacons, 9, env_ids, 17, model.params, out)
+    ranging_batch(pos, np.zeros(pos.shape[:2]), beacons, 9, env_ids, 17, model.params, out)
     np.testing.assert_array_equal(out, ranging_readings(pos, beacons, 9, env_ids, 17, model))
 
 

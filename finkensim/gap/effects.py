@@ -312,13 +312,15 @@ register(Effect(
     expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
 register(Effect(
     "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.35, unit="m")),
-    lambda b, v: b.with_(nlos_bias=v["bias"], nlos_width=v["width"]),
+    lambda b, v: b.with_ranging(nlos_bias=v["bias"], nlos_width=v["width"]),
     doc="ranging reads long when a third copter's body is near the line of sight: bias·exp(−(clearance/width)²)",
-    initial=lambda b: {"bias": b.nlos_bias, "width": b.nlos_width},
+    initial=lambda b: {"bias": b.ranging.radio["nlos_bias"], "width": b.ranging.radio["nlos_width"]},
+    calibrate=lambda v, cfg: {"ranging.nlos_bias": v["bias"], "ranging.nlos_width": v["width"]},
     expected_features=("los_clearance", "neighbor_distance")))
 register(Effect(
     "ranging_dropout", ("ranging",), (Param("a", -12.0, 8.0), Param("b", -6.0, 6.0, unit="1/m")),
-    lambda b, v: b.with_(dropout_a=v["a"], dropout_b=v["b"]),
+    lambda b, v: b.with_ranging(dropout_a=v["a"], dropout_b=v["b"]),
+    calibrate=lambda v, cfg: {"ranging.dropout_a": v["a"], "ranging.dropout_b": v["b"]},
     doc="readings go missing with probability sigmoid(a + b·distance)",
     initial=lambda b: {"a": -12.0, "b": 0.0}, expected_features=("true_range",)))
 register(Effect(
@@ -338,3 +340,6 @@ register(Effect(
     calibrate=lambda v, cfg: {"imu.acc_bias": [cfg.imu.acc_bias[0] + v["acc_x"], cfg.imu.acc_bias[1] + v["acc_y"]],
                               "imu.gyro_bias": cfg.imu.gyro_bias + v["gyro"]},
     separable=True))
+
+# the radio effects of the ranging kernel (ranging_bias, _scale, _antenna_offset, _node_delay, _nlos_tail)
+from . import effects_radio  # noqa: E402,F401  (registers them after the entries above)

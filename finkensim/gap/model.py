@@ -44,9 +44,9 @@ class ModelParams:
     reach); bulge_response s: the plates follow that displacement with this
     first-order time constant (0: at once). beam_rays: rays of a cone beam when an
     effect widens a single-ray beam. latency_* s: readings describe the world that much earlier (negative:
-    later, as after a clock offset that was too early); each flight applies it as whole log steps (:func:`lag_steps`). nlos_bias m, nlos_width m: ranging reads ``bias·exp(−(clearance/width)²)`` long when a third
-    copter is near the line of sight. dropout_a, dropout_b 1/m: a ranging reading is missing with
-    probability sigmoid(a + b·distance) (a = −inf: never). Constant IMU biases are fields of the ``imu`` record
+    later, as after a clock offset that was too early); each flight applies it as whole log steps (:func:`lag_steps`).
+    The radio effects (NLOS near a third copter, dropout, bias, scale, node delays, antenna offsets, NLOS tail)
+    are the ``ranging`` record's own (:meth:`with_ranging`, :mod:`finkensim.sensors.ranging_radio`). Constant IMU biases are fields of the ``imu`` record
     (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
     bulge_hinge in [0, 1]: the weight of the walls' own polynomial law in the bulge's target
     (:func:`~finkensim.gap.bulge.bulge_target`; 0 = the catalogue's law, set only by the flexible refit of
@@ -65,10 +65,6 @@ class ModelParams:
     bulge_shape: float = 2.0
     beam_rays: int = 7
     latency_sonar: float = 0.0
-    nlos_bias: float = 0.0
-    nlos_width: float = 0.2
-    dropout_a: float = -math.inf
-    dropout_b: float = 0.0
     latency_ranging: float = 0.0
     latency_imu: float = 0.0
     bulge_hinge: float = 0.0
@@ -89,6 +85,10 @@ class ModelParams:
         if "sigma" in kw and "rayleigh_s" not in kw:
             kw["rayleigh_s"] = rayleigh_std(kw["sigma"])
         return replace(self, sonar=self.sonar._replace(**kw))
+
+    def with_ranging(self, **kw) -> "ModelParams":
+        """A copy whose ranging model has the given radio effects replaced (``RangingModel.with_radio``)."""
+        return replace(self, ranging=self.ranging.with_radio(**kw))
 
     def sensor_key(self, sensor: str) -> tuple:
         """A hashable key of everything the predictive of ``sensor`` depends on (computed once per sensor: a fit
@@ -113,7 +113,7 @@ SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
     "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar",
                    "bulge_hinge"),
-    "ranging": ("ranging", "nlos_bias", "nlos_width", "dropout_a", "dropout_b", "latency_ranging"),
+    "ranging": ("ranging", "latency_ranging"),
     "imu": ("imu", "latency_imu"),
 }
 assert {f.name for f in fields(ModelParams)} == set(SHARED_FIELDS).union(*SENSOR_FIELDS.values())
@@ -125,7 +125,7 @@ def _hashable(v):
     if isinstance(v, np.ndarray):
         return (v.dtype.str, v.shape, v.tobytes())
     if isinstance(v, RangingModel):
-        return ("RangingModel", v.error, v.max_range, v.sigma, v.seed_variance_factor, id(v.mixture))
+        return ("RangingModel", v.error, v.max_range, v.sigma, v.seed_variance_factor, id(v.mixture), v.radio_key())
     if isinstance(v, tuple):
         return tuple(_hashable(x) for x in v)
     return v

@@ -20,6 +20,7 @@ from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RAND
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
 from ..sensors.sonar_hold import held_steps
+from ..sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
 
@@ -313,18 +314,23 @@ class RangingTable(Table):
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, u: np.ndarray):
         sx = fl.sigma_xy if p.sigma_xy is None else p.sigma_xy
         G = geometry_draws(sx, 0.0, M)
-        key = ("ranging", fl.index, _rows_key(u), round(sx, 9), lag_steps(p.latency_ranging, fl.dt), G)
+        radio = p.ranging.params
+        key = ("ranging", fl.index, _rows_key(u), round(sx, 9), lag_steps(p.latency_ranging, fl.dt), G, antenna_key(radio))
         hit = self.cache.get(key)
         if hit is None:
             times = np.clip(fl.samples[u] - lag_steps(p.latency_ranging, fl.dt), 0, fl.t.size - 1)
             N = fl.n_copters
             out = np.empty((times.size, N, N, G))
-            rp.ranging_draws(fl.pos, fl.z, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
+            if radio.antenna_on:  # tag-to-tag distances (ranging_antenna_offset): the simulator's own kernel
+                tag_distance_draws(fl.pos, fl.z, fl.yaw, times, fl.noise(sx, 0.0, seed), G, radio, out)
+            else:
+                rp.ranging_draws(fl.pos, fl.z, fl.yaw, times, fl.noise(sx, 0.0, seed), G, out)
             hit = self.cache.put(key, (out,))
         return hit
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
-        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.field_key("ranging"), seed, M)
+        key = ("mix", id(rows), rows.size, p.sigma_xy, p.latency_ranging, p.ranging.noise_key(), seed, M,
+               antenna_key(p.ranging.params))
         hit = self.cache.get(key)
         if hit is None:
             (x,), period = _gather(self, flights, rows, lambda fl, sp: self._ideal(p, seed, M, fl, sp.u), M)
@@ -333,19 +339,18 @@ class RangingTable(Table):
                                   copter=0).reshape(x.shape)
             hit = self.cache.put(key, (x, y0, period))
         x, y, period = hit
-        inside = x <= p.ranging.max_range
-        if p.nlos_bias != 0.0:
-            clear = self.features["los_clearance"][rows]
-            y = y + (p.nlos_bias * np.exp(-((clear / max(p.nlos_width, 1e-6)) ** 2)))[:, None]
-        y = np.where(inside, np.maximum(y, 0.0), p.ranging.max_range)
+        if p.ranging.params.radio_on:  # the radio effects: the simulator's kernel (sensors.ranging_radio)
+            return radio_draws(y, x, self.copter[rows], self.channel[rows], self.features["los_clearance"][rows],
+                               seed, p.ranging.params), period
+        y = np.where(x <= p.ranging.max_range, np.maximum(y, 0.0), p.ranging.max_range)
         return y, period
 
     def dropout_prob(self, p: ModelParams, rows: np.ndarray) -> np.ndarray:
         """Model probability (len(rows),) that a reading is missing."""
-        if not np.isfinite(p.dropout_a):
+        radio = p.ranging.params
+        if not radio.dropout_on:
             return np.zeros(rows.size)
-        z = p.dropout_a + p.dropout_b * self.features["true_range"][rows]
-        return 1.0 / (1.0 + np.exp(-z))
+        return dropout_probabilities(self.features["true_range"][rows], radio.dropout_a, radio.dropout_b)
 
 
 def imu_steps(cfg: Config, dt: float) -> tuple[int, int]:

@@ -6,8 +6,11 @@ noise on the logged poses (declared in ``meta``). Effects the simulator models i
 walls, geometric and constant cross-talk, beam width, Rayleigh scale) are switched on in its
 config; the others are applied to the simulated log by code written here, independently of the
 diagnosis's own effect models. Controls: ``null`` (nothing withheld: no gap should be found)
-and two effects outside the catalogue, ``foreign`` (a ranging clock-scale error) and
-``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``.
+and two effects outside the catalogue, ``foreign`` (false first-path detection: 8–15 % of ranging readings read
+0.3–1 m short; the catalogue's NLOS tail reads long, a bias or scale moves every reading) and
+``foreign_multipath`` (sonar multipath ghosts that read long): the verdict must be ``unexplained``. The radio effects
+(``ranging_bias``, ``_scale``, ``_antenna_offset``, ``_node_delay``, ``_nlos_tail``) are flown by the simulator
+through their ``[ranging]`` config keys.
 """
 from __future__ import annotations
 
@@ -146,11 +149,30 @@ def _post_sonar_multipath(p_ghost, lo, hi):
     return f
 
 
-def _post_ranging_scale(k):
+def _post_ranging_early(p_early, lo, hi):
+    """False first-path detection: with probability p a reading triggers on noise before the true first path and
+    reads short by U(lo, hi) m (clipped at 0). No catalogued effect reads short by a random amount in a fraction
+    of readings (the NLOS tail reads long; a bias or a scale moves every reading)."""
     def f(log, cfg, rng):
-        inside = log.extras["ranging_ideal"] < cfg.ranging.max_range
-        log.ranging = np.where(inside, log.ranging * k, log.ranging)
+        d = log.extras["ranging_ideal"]
+        hit = (d < cfg.ranging.max_range) & (rng.random(d.shape) < p_early)
+        N = d.shape[1]
+        hit[:, np.arange(N), np.arange(N)] = False
+        log.ranging = np.where(hit, np.maximum(log.ranging - rng.uniform(lo, hi, d.shape), 0.0), log.ranging)
     return f
+
+
+def _antenna_case(r):
+    """A tag 0.1-0.25 m off the centre in a random body-frame direction."""
+    radius, angle = float(r.uniform(0.1, 0.25)), float(r.uniform(-np.pi, np.pi))
+    x, y = radius * math.cos(angle), radius * math.sin(angle)
+    return {"ranging.antenna_offset": [x, y, 0.0]}, None, {"x": x, "y": y}
+
+
+def _node_delay_case(r):
+    """Every node's own delay in ±(0.05 … 0.2) m (nodes beyond the swarm are unused)."""
+    delays = [_sign(r) * float(r.uniform(0.05, 0.2)) for _ in range(10)]
+    return {"ranging.node_delay": delays}, None, {f"delay_{k}": d for k, d in enumerate(delays)}
 
 
 CASES: dict[str, Case] = {
@@ -191,8 +213,18 @@ CASES: dict[str, Case] = {
         {}, _post_imu_bias(bx := _sign(r) * float(r.uniform(0.05, 0.2)), by := _sign(r) * float(r.uniform(0.05, 0.2)),
                            bg := _sign(r) * float(r.uniform(0.01, 0.05))),
         {"acc_x": bx, "acc_y": by, "gyro": bg}), "imu"),
+    "ranging_bias": Case("ranging_bias", "ranging_bias", lambda r: (
+        {"ranging.bias": (b := _sign(r) * float(r.uniform(0.08, 0.2)))}, None, {"bias": b}), "ranging"),
+    "ranging_scale": Case("ranging_scale", "ranging_scale", lambda r: (
+        {"ranging.scale": (k := 1.0 + _sign(r) * float(r.uniform(0.06, 0.12)))}, None, {"factor": k}), "ranging"),
+    "ranging_antenna_offset": Case("ranging_antenna_offset", "ranging_antenna_offset", _antenna_case, "ranging"),
+    "ranging_node_delay": Case("ranging_node_delay", "ranging_node_delay", _node_delay_case, "ranging"),
+    "ranging_nlos_tail": Case("ranging_nlos_tail", "ranging_nlos_tail", lambda r: (
+        {"ranging.nlos_tail_probability": (p := float(r.uniform(0.1, 0.25))),
+         "ranging.nlos_tail_mean": (m := float(r.uniform(0.2, 0.5)))}, None, {"probability": p, "mean": m}),
+        "ranging"),
     "foreign": Case("foreign", None, lambda r: (
-        {}, _post_ranging_scale(float(r.uniform(1.08, 1.15))), {}), "ranging"),
+        {}, _post_ranging_early(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ranging"),
     "foreign_multipath": Case("foreign_multipath", None, lambda r: (
         {}, _post_sonar_multipath(float(r.uniform(0.08, 0.15)), 0.3, 1.0), {}), "ultrasonic"),
 }
@@ -249,6 +281,8 @@ def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, 
         for k in [k for k in log.extras if k.endswith("_ideal") or k == "ultrasonic_hit_type"]:
             del log.extras[k]
         logs.append(log)
+    # per-node truths of nodes the swarm does not have (ranging_node_delay draws ten) are not the log's
+    truth = {k: v for k, v in truth.items() if not (k.startswith("delay_") and int(k[6:]) >= conv.n_copters)}
     return logs, diag_cfg, truth
 
 

@@ -53,6 +53,7 @@ from ..config import ConfigError
 from .mixture import Mixture, MixtureError
 from .ranging_kernels import (MODE_GAUSSIAN, MODE_MIXTURE, MODE_NONE, MODE_SEED, MODES, RangingParams,
                               ranging_batch, row_key, sample_readings)
+from .ranging_radio import RadioParams, neutral_radio
 from .ranging_table import ResponsibilityTable, cached_table
 
 __all__ = [
@@ -65,6 +66,8 @@ __all__ = [
     "MixtureError",
     "RangingModel",
     "RangingParams",
+    "RadioParams",
+    "RADIO_KEYS",
     "ResponsibilityTable",
     "ideal_ranges",
     "ranging_readings",
@@ -84,7 +87,7 @@ class RangingModel:
 
     def __init__(self, error: str = "mixture", max_range: float = 2.5, sigma: float = 0.1,
                  mixture: Mixture | None = None, seed_variance_factor: float = 10.0, beacons=(),
-                 table_tol: float = 1e-4):
+                 table_tol: float = 1e-4, **radio):
         if error not in MODES:
             raise ValueError(f"ranging.error = {error!r}: expected one of {', '.join(map(repr, MODES))}")
         if not (max_range > 0 and math.isfinite(max_range)):
@@ -103,8 +106,30 @@ class RangingModel:
             mixture = Mixture.default()
         self.mixture = mixture
         self.table = cached_table(mixture, self.max_range, table_tol) if error == "mixture" else None
+        unknown = sorted(set(radio) - set(RADIO_KEYS))
+        if unknown:
+            raise TypeError(f"RangingModel: unknown radio effect {unknown[0]!r}; expected one of {RADIO_KEYS}")
+        self.radio = {**RADIO_DEFAULTS, **radio}
         self.params = self._params()
-        self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE))
+        self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE), **neutral_radio()._asdict())
+
+    def with_radio(self, **changes) -> "RangingModel":
+        """A copy with the given radio effects (keys of :data:`RADIO_KEYS`, units as the ``[ranging]`` config keys
+        of the same names) replaced; the error model, its table and mixture are shared."""
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new.radio = {**self.radio, **changes}
+        new.params = self.params._replace(**radio_params(new.radio)._asdict())
+        return new
+
+    def noise_key(self) -> tuple:
+        """A hashable key of the error model alone (what :meth:`sample` depends on; the radio effects left out)."""
+        return ("RangingModel", self.error, self.max_range, self.sigma, self.seed_variance_factor, id(self.mixture))
+
+    def radio_key(self) -> tuple:
+        """A hashable key of the radio effects (canonical: trailing zero delays and offsets dropped)."""
+        r = radio_params(self.radio)
+        return tuple(v.tobytes() if isinstance(v, np.ndarray) else float(v) for v in r)
 
     def __setstate__(self, state):
         # pickle (process pools, Dask, deepcopy) restores every array writeable; the kernels' records must keep their
@@ -123,7 +148,8 @@ class RangingModel:
             except MixtureError as exc:
                 raise MixtureError(f"ranging.mixture_file = {cfg.mixture_file!r}: {exc}") from None
         return cls(error=cfg.error, max_range=cfg.max_range, sigma=cfg.sigma, mixture=mixture,
-                   seed_variance_factor=cfg.seed_variance_factor, beacons=cfg.beacons, table_tol=table_tol)
+                   seed_variance_factor=cfg.seed_variance_factor, beacons=cfg.beacons, table_tol=table_tol,
+                   **{k: getattr(cfg, k) for k in RADIO_KEYS})
 
     def _params(self) -> RangingParams:
         """The kernels' record (layout in :class:`RangingParams`); unused parts are 1-element placeholders."""
@@ -142,7 +168,7 @@ class RangingModel:
         # read-only arrays throughout, so every mode has the same numba type (one compilation)
         comp = np.stack([np.asarray(a, dtype=np.float64) for a in arrays], axis=1)  # (K, 7), columns COMP_*
         return _readonly_params(RangingParams(np.int64(self.mode), float(self.max_range), float(self.sigma),
-                                              float(inv_h), prob, alias, comp))
+                                              float(inv_h), prob, alias, comp, *radio_params(self.radio)))
 
     def sample(self, x, seed: int = 0, env: int = 0, step: int = 0, copter: int = 0) -> np.ndarray:
         """Readings, m, for true distances ``x`` m (any shape; element j of the flattened array uses reading
@@ -157,6 +183,7 @@ class RangingModel:
         sample_readings(xs, row_key(seed, env, step, copter), self.params, out)
         return out.reshape(x.shape)
 
+    def __repr__(self) -> str:
         extra = f", table={self.table!r}" if self.table is not None else ""
         return (f"RangingModel(error={self.error!r}, max_range={self.max_range}, sigma={self.sigma}, "
                 f"beacons={len(self.beacons)}, mixture={self.mixture!r}{extra})")
@@ -173,7 +200,8 @@ def _ro(a, dtype) -> np.ndarray:
 
 def _readonly_params(p: RangingParams) -> RangingParams:
     """``p`` with its arrays read-only (the one numba type of :class:`RangingParams`)."""
-    return p._replace(prob=_ro(p.prob, np.float64), alias=_ro(p.alias, np.int32), comp=_ro(p.comp, np.float64))
+    return p._replace(prob=_ro(p.prob, np.float64), alias=_ro(p.alias, np.int32), comp=_ro(p.comp, np.float64),
+                      node_delay=_ro(p.node_delay, np.float64), antenna=_ro(p.antenna, np.float64))
 
 
 @functools.lru_cache(maxsize=16)
@@ -182,7 +210,7 @@ def _model_for_config(cfg) -> "RangingModel":
 
 
 def ranging_readings(positions, beacons, seed: int, env_ids, step: int, params: RangingModel,
-                     ideal: bool = False, out: np.ndarray | None = None) -> np.ndarray:
+                     ideal: bool = False, out: np.ndarray | None = None, yaw=None) -> np.ndarray:
     """The virtual-ranging readings of a batch: (B, N, N + M) float64, m.
 
     ``positions`` (B, N, 2) copter positions, m; ``beacons`` (M, 2) fixed tags (may be empty);
@@ -190,7 +218,8 @@ def ranging_readings(positions, beacons, seed: int, env_ids, step: int, params: 
     run with ``env_ids=[env_ids[b]]``); ``step`` the step index; ``params`` a :class:`RangingModel`
     (a ``RangingConfig`` is accepted and converted, cached). Row i = measuring copter, columns = copters
     0…N−1 then beacons. ``ideal=True`` returns the true distances (self 0, clipped at max_range)
-    without drawing random numbers. ``out`` may be a preallocated C-contiguous float64 array.
+    without drawing random numbers. ``out`` may be a preallocated C-contiguous float64 array. ``yaw`` (B, N)
+    rad: the headings (read by the antenna offsets; None = 0). A reading lost to dropout is NaN.
     Wrong inputs raise :class:`~finkensim.config.ConfigError` naming the array.
     """
     if not isinstance(params, RangingModel):
@@ -202,7 +231,10 @@ def ranging_readings(positions, beacons, seed: int, env_ids, step: int, params: 
     shape = (n_env, n, n + bea.shape[0])
     out = np.empty(shape) if out is None else check_inplace("out", out, shape)
     p = params.ideal_params if ideal else params.params
-    ranging_batch(pos, bea, np.int64(seed), env, np.int64(step), p, out)
+    yaws = np.zeros(pos.shape[:2]) if yaw is None else as_array("yaw", yaw, np.float64, unit="rad")
+    if yaws.shape != pos.shape[:2]:
+        raise ConfigError(f"yaw has shape {yaws.shape}: expected {pos.shape[:2]} (B, N) rad like positions")
+    ranging_batch(pos, np.ascontiguousarray(yaws), bea, np.int64(seed), env, np.int64(step), p, out)
     return out
 
 
@@ -213,3 +245,41 @@ def ideal_ranges(positions, beacons=(), max_range: float = 2.5) -> np.ndarray:
     model = RangingModel("none", max_range=max_range)
     env = np.zeros(pos.shape[0], dtype=np.int64)
     return ranging_readings(pos, beacons, 0, env, 0, model, ideal=True)
+
+
+#: The radio effects' keys (the ``[ranging]`` config keys of the same names) and their neutral defaults.
+RADIO_DEFAULTS = {"bias": 0.0, "scale": 1.0, "node_delay": (), "antenna_offset": (0.0, 0.0, 0.0),
+                  "antenna_offset_per_copter": (), "nlos_bias": 0.0, "nlos_width": 0.2,
+                  "nlos_tail_probability": 0.0, "nlos_tail_mean": 0.3, "dropout_a": -100.0, "dropout_b": 0.0}
+RADIO_KEYS = tuple(RADIO_DEFAULTS)
+#: ``dropout_a`` at or below this means no dropout at all (the config's lower bound)
+DROPOUT_NEVER = -100.0
+
+
+def _trim(a: np.ndarray) -> np.ndarray:
+    """``a`` without its trailing all-zero rows (one canonical form per set of values)."""
+    nz = np.flatnonzero(np.any(a.reshape(a.shape[0], -1) != 0.0, axis=1)) if a.size else np.zeros(0, int)
+    return a[:nz[-1] + 1] if nz.size else a[:0]
+
+
+def radio_params(v: dict) -> RadioParams:
+    """The kernels' :class:`RadioParams` of the radio effects ``v`` (keys of :data:`RADIO_KEYS`, config units)."""
+    delay = _trim(np.asarray(v["node_delay"], dtype=np.float64).reshape(-1))
+    per = np.asarray(v["antenna_offset_per_copter"], dtype=np.float64).reshape(-1, 2)
+    per = _trim(np.concatenate([per, np.zeros((per.shape[0], 1))], axis=1))
+    shared = np.asarray(v["antenna_offset"], dtype=np.float64).reshape(1, 3)
+    antenna = np.concatenate([shared, per], axis=0)
+    a = float(v["dropout_a"])
+    dropout_on = a > DROPOUT_NEVER
+    antenna_on = bool(np.any(antenna != 0.0))
+    nlos_on = float(v["nlos_bias"]) != 0.0
+    tail_on = float(v["nlos_tail_probability"]) > 0.0
+    on = (antenna_on or nlos_on or tail_on or dropout_on or delay.size > 0 or float(v["scale"]) != 1.0
+          or float(v["bias"]) != 0.0)
+    out = RadioParams(np.int64(on), np.int64(antenna_on), np.int64(nlos_on), np.int64(tail_on), np.int64(dropout_on),
+                      float(v["scale"]), float(v["bias"]), delay, antenna, float(v["nlos_bias"]),
+                      float(v["nlos_width"]), float(v["nlos_tail_probability"]), float(v["nlos_tail_mean"]),
+                      a if dropout_on else -np.inf, float(v["dropout_b"]))
+    for arr in (out.node_delay, out.antenna):
+        arr.setflags(write=False)
+    return out

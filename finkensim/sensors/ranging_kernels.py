@@ -39,11 +39,12 @@ from numba import njit, prange
 
 from ..kernels.cellgrid import build_env, query_env
 from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
+from .ranging_radio import RadioParams, los_clearance, radio_dropped, radio_shift, tag_distance
 
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
     "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
-    "ranging_reach",
+    "ranging_reach", "ranging_radio_env",
     "reading_rule", "row_key", "sample_readings", "seed_reading", "COMP_MEAN", "COMP_SLOPE", "COMP_COND_MEAN",
     "COMP_COND_STD", "COMP_LOG_WN", "COMP_HALF_INV_COVAR", "COMP_SEED_STD",
 ]
@@ -71,7 +72,10 @@ class RangingParams(NamedTuple):
     sqrt(seed_variance_factor · covar) m. Unused parts are small placeholders; all arrays are read-only and
     C-contiguous, so every mode has the same numba type (one compilation).
 
-    Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = p``) and call
+    Then the fields of :class:`~finkensim.sensors.ranging_radio.RadioParams`, the radio effects (antenna offsets,
+    delays, scale, bias, NLOS, tail, dropout; ``radio_on`` = 0 leaves every reading as without them).
+
+    Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]``) and call
     :func:`reading_rule`: numba does not always elide the reference counting of arrays handed to an inlined
     function, and each count is an atomic increment and decrement. With the record passed per reading (and a
     compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading. The compiled twins that
@@ -87,6 +91,24 @@ class RangingParams(NamedTuple):
     prob: np.ndarray
     alias: np.ndarray
     comp: np.ndarray
+    radio_on: np.int64
+    antenna_on: np.int64
+    nlos_on: np.int64
+    tail_on: np.int64
+    dropout_on: np.int64
+    scale: float
+    bias: float
+    node_delay: np.ndarray
+    antenna: np.ndarray
+    nlos_bias: float
+    nlos_width: float
+    tail_probability: float
+    tail_mean: float
+    dropout_a: float
+    dropout_b: float
+
+
+assert RangingParams._fields[7:] == RadioParams._fields  # the radio effects' fields, in the same order
 
 
 def row_key(seed, env, step, copter) -> np.uint64:
@@ -179,16 +201,60 @@ def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
 
 
 @njit(cache=True, inline="always")
-def ranging_env(pos_b, beacons, seed, env, step, p, out):
-    """Virtual-ranging readings of one environment → out (N, N + M) float64, m.
-
-    ``pos_b`` (N, 2) copter positions m; ``beacons`` (M, 2) tags m; ``seed``, ``env`` (global environment
-    index), ``step``: integers of the counter keys; ``p`` a :class:`RangingParams`. out[i, j] is copter i's
-    reading of copter j (j < N; out[i, i] = 0) or of beacon j − N.
-    """
+def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, p, out):
+    """:func:`ranging_env` with the radio effects of ``p`` (:mod:`finkensim.sensors.ranging_radio`): the
+    tag-to-tag distance decides the range and feeds the error model, whose draw :func:`radio_shift` turns into
+    the reading; a lost reading (dropout) is NaN. Every pair is visited (no cell grid)."""
     n = pos_b.shape[0]
     m = beacons.shape[0]
-    mode, max_range, sigma, inv_h, prob, alias, comp = p
+    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
+    for i in range(n):
+        key = counter_key(seed, env, step, i, STREAM_RANGING)
+        xi = pos_b[i, 0]
+        yi = pos_b[i, 1]
+        for j in range(n + m):
+            if j == i:
+                out[i, j] = 0.0
+                continue
+            if j < n:
+                bx = pos_b[j, 0]
+                by = pos_b[j, 1]
+                wb = yaw_b[j]
+            else:
+                bx = beacons[j - n, 0]
+                by = beacons[j - n, 1]
+                wb = 0.0
+            if p.antenna_on:
+                x = tag_distance(p, i, xi, yi, 0.0, yaw_b[i], j, bx, by, 0.0, wb, j >= n)
+            else:
+                dx = bx - xi
+                dy = by - yi
+                x = np.sqrt(dx * dx + dy * dy)
+            if x > max_range:
+                out[i, j] = max_range
+            elif radio_dropped(x, key, j, p):
+                out[i, j] = np.nan
+            else:
+                y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
+                clear = los_clearance(pos_b, i, j if j < n else -1, bx, by) if p.nlos_on else np.inf
+                out[i, j] = radio_shift(y, i, j, clear, key, j, p)
+
+
+@njit(cache=True, inline="always")
+def ranging_env(pos_b, yaw_b, beacons, seed, env, step, p, out):
+    """Virtual-ranging readings of one environment → out (N, N + M) float64, m.
+
+    ``pos_b`` (N, 2) copter positions m; ``yaw_b`` (N,) headings rad (read only by the antenna offsets);
+    ``beacons`` (M, 2) tags m; ``seed``, ``env`` (global environment index), ``step``: integers of the counter
+    keys; ``p`` a :class:`RangingParams` (with radio effects on: :func:`ranging_radio_env`). out[i, j] is copter
+    i's reading of copter j (j < N; out[i, i] = 0) or of beacon j − N.
+    """
+    if p.radio_on:
+        ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, p, out)
+        return
+    n = pos_b.shape[0]
+    m = beacons.shape[0]
+    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
     drawn = np.empty(n + m, dtype=np.int64)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
@@ -223,7 +289,7 @@ def ranging_reach(max_range):
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid, fill=True):
+def ranging_grid_env(pos_b, yaw_b, beacons, seed, env, step, p, out, g, grid, fill=True):
     """:func:`ranging_env` with the copter pairs found on a cell grid when ``g.on``: the same readings, bit for bit.
 
     g: a :class:`~finkensim.kernels.cellgrid.EngineGrid`, grid: this environment's buffers of it
@@ -235,14 +301,14 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid, fill=True
     columns the same grid query finds (the wall check on the engine's grid) — at N = 10 000 the fill is 10⁸ writes
     per step, the drawn readings 10⁵.
     """
-    if not g.on:
-        ranging_env(pos_b, beacons, seed, env, step, p, out)
+    if not g.on or p.radio_on:  # the radio effects visit every pair (tag distances, third copters)
+        ranging_env(pos_b, yaw_b, beacons, seed, env, step, p, out)
         return
     n = pos_b.shape[0]
     m = beacons.shape[0]
     cell_start, order, spos, cell_of, found, found_d2 = grid
     build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
-    mode, max_range, sigma, inv_h, prob, alias, comp = p
+    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
     reach = ranging_reach(max_range)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
@@ -275,17 +341,17 @@ def ranging_grid_env(pos_b, beacons, seed, env, step, p, out, g, grid, fill=True
 
 
 @njit(cache=True, parallel=True)
-def ranging_batch(positions, beacons, seed, env_ids, step, p, out):
-    """:func:`ranging_env` for every environment b (in parallel): ``positions`` (B, N, 2) m, ``beacons``
-    (M, 2) m, ``env_ids`` (B,) int64 → out (B, N, N + M) float64 m."""
+def ranging_batch(positions, yaws, beacons, seed, env_ids, step, p, out):
+    """:func:`ranging_env` for every environment b (in parallel): ``positions`` (B, N, 2) m, ``yaws`` (B, N) rad,
+    ``beacons`` (M, 2) m, ``env_ids`` (B,) int64 → out (B, N, N + M) float64 m."""
     for b in prange(positions.shape[0]):
-        ranging_env(positions[b], beacons, seed, env_ids[b], step, p, out[b])
+        ranging_env(positions[b], yaws[b], beacons, seed, env_ids[b], step, p, out[b])
 
 
 @njit(cache=True, parallel=True)
 def sample_readings(xs, key, p, out):
     """out[j]: :func:`reading_rule` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
     (in parallel: each column's random numbers depend on j alone)."""
-    mode, max_range, sigma, inv_h, prob, alias, comp = p
+    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
     for j in prange(xs.shape[0]):
         out[j] = reading_rule(xs[j], key, j, mode, max_range, sigma, inv_h, prob, alias, comp)

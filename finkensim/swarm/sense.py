@@ -100,7 +100,8 @@ def sense_env(b, k, state, run, models, buf, grid, grid_b):
     if run.do_down:
         down_twin(buf.altitude, sp, seed, env, k, buf.sonar_down)
     if run.do_ranging:
-        ranging_twin(pos, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b, buf.fill_ranging)
+        ranging_twin(pos, yaw, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b,
+                     buf.fill_ranging)
     if run.do_imu:
         imu_twin(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
                  buf.imu_gyro)

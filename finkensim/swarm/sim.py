@@ -264,7 +264,7 @@ class SwarmSim:
             sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
                                                        env_ids, k, return_ideal=True)
         down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
-        rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging) if on["ranging"] else None
+        rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging, yaw=ws.yaw) if on["ranging"] else None
         bias = state.imu_bias.copy()
         mem = state.behaviour.copy()
         if on["sonar"] and self.sonar.update_hz > 0.0:
