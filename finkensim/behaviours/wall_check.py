@@ -109,7 +109,9 @@ class BehaviourState:
     dr_pos (B, N, 2) m, dr_vel (B, N, 2) m/s, dr_yaw (B, N) rad: IMU dead reckoning in each copter's
     start frame; wall_onsets (B, N) int64: flags set since init; wall_readings (B, N) int64: echoes
     judged to be walls since init; sonar_held (B, N, K) m: the sonars' last measurements, shown between
-    measurements when ``sonar.update_hz`` > 0 (:mod:`finkensim.sensors.sonar_hold`).
+    measurements when ``sonar.update_hz`` > 0 (:mod:`finkensim.sensors.sonar_hold`); sensor_delay (B, slots, N, W):
+    the ring buffer of delayed readings when a sensor has a latency (:mod:`finkensim.sensors.latency`; (B, 0, N, 0)
+    without).
     """
 
     fail_count: np.ndarray
@@ -121,13 +123,15 @@ class BehaviourState:
     wall_onsets: np.ndarray
     wall_readings: np.ndarray
     sonar_held: np.ndarray
+    sensor_delay: np.ndarray
 
     @classmethod
     def zeros(cls, n_envs: int, n_copters: int, n_sonars: int = 4) -> "BehaviourState":
         B, N, K = int(n_envs), int(n_copters), int(n_sonars)
         return cls(np.zeros((B, N, K), dtype=np.int64), np.zeros((B, N, K), dtype=np.bool_),
                    np.zeros((B, N, K, 3)), np.zeros((B, N, 2)), np.zeros((B, N, 2)), np.zeros((B, N)),
-                   np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64), np.zeros((B, N, K)))
+                   np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64), np.zeros((B, N, K)),
+                   np.zeros((B, 0, N, 0)))
 
     def copy(self) -> "BehaviourState":
         return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)})

@@ -309,7 +309,12 @@ register(Effect(
     doc="readings describe the world some time earlier (per sensor, s; negative: later, a clock offset set too "
         "early); searched in whole samples of the log",
     initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
-    expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
+    expected_features=("range_rate", "speed", "acc_magnitude"), separable=True,
+    # the simulator flies latencies >= 0 (a simulated reading cannot describe a later world): a negative fit (a log
+    # stamped early) flies as 0, and the calibrated file's comment at the key shows the fitted value
+    calibrate=lambda v, cfg: {"sonar.latency": max(0.0, float(v["ultrasonic"])),
+                              "ranging.latency": max(0.0, float(v["ranging"])),
+                              "imu.latency": max(0.0, float(v["imu"]))}))
 register(Effect(
     "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.35, unit="m")),
     lambda b, v: b.with_(nlos_bias=v["bias"], nlos_width=v["width"]),

@@ -24,12 +24,13 @@ from numba import njit, prange
 from ..config import Config
 from ..kernels.rng import STREAM_EFFECT, counter_key, normal
 from ..sensors.imu import ImuModel
+from ..sensors.latency import lag_steps
 from ..sensors.ranging import RangingModel
 from ..kernels.raycast import HIT_NONE
 from ..sensors.sonar_kernels import echo_error, measured_reading
 from ..sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
-__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws"]
+__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +75,8 @@ class ModelParams:
         """The simulator's models of ``cfg`` (the ranging mixture file is read here) and neutral gap knobs."""
         return cls(sonar=SonarModel.from_config(cfg), ranging=RangingModel.from_config(cfg.ranging),
                    imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
-                   wall_gain=1.0 if cfg.walls.bending else 0.0, beam_rays=int(cfg.sonar.beam_rays))
+                   wall_gain=1.0 if cfg.walls.bending else 0.0, beam_rays=int(cfg.sonar.beam_rays),
+                   latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency)
 
     def with_(self, **kw) -> "ModelParams":
         """A copy with the given fields replaced."""
@@ -162,9 +164,3 @@ def gaussian_draws(ideal, flight, tidx, chan, seed, sd, bias, out):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
         for m in range(M):
             out[i, m] = ideal[i, m] + bias[i] + sd[i] * normal(key, m)
-
-
-def lag_steps(seconds: float, dt: float) -> int:
-    """A latency of ``seconds`` as whole samples of a log with sample period ``dt`` s (nearest; ties away from 0)."""
-    x = seconds / dt
-    return int(math.copysign(math.floor(abs(x) + 0.5), x))

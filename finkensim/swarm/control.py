@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_batch
 from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
@@ -171,6 +172,13 @@ class Controlled:
             for b in range(B):
                 hold_env(obs.sonar[b], held[b], run.step0 + n_steps, run.dt, sim.sonar.update_hz,
                          sim.sonar.update_phase)
+        if sim.lags.any():  # latency: each reading describes the world that many steps earlier
+            buf, k = state.behaviour.sensor_delay, run.step0 + n_steps
+            sim._check_delay(buf, B, N)
+            for name, sensor, arr, off in (("sonar", LAG_SONAR, obs.sonar, 0), ("ranging", LAG_RANGING, obs.ranging, 0),
+                                           ("imu", LAG_IMU, obs.imu_acc, 0), ("imu", LAG_IMU, obs.imu_gyro, 2)):
+                if sim.enabled[name]:
+                    delay_batch(arr, buf, sim.lags, sensor, k, self.n_ranging, off)
         return obs
 
     def sense(self, state: SwarmState, out: ControlReadings | None = None) -> ControlReadings:

@@ -26,6 +26,7 @@ from ..behaviours.attraction import attraction_env, body_to_world_env
 from ..behaviours.random_walk import random_walk_env
 from ..behaviours.wall_check import WALL_CHECK_NONE, dead_reckon_env, wall_check_env
 from ..sensors.imu import imu_env
+from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_columns, delay_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
@@ -51,6 +52,7 @@ attraction_twin = twin(attraction_env)
 body_to_world_twin = twin(body_to_world_env)
 random_walk_twin = twin(random_walk_env)
 step_twin = twin(step_env)
+delay_twin = twin(delay_env)
 
 
 @njit(cache=True, **INTERNAL)
@@ -135,7 +137,8 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
     R = N + beacons.shape[0]
     seed = run.seed
     # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
-    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range
+    # (not with a ranging latency: the delayed rows are not those of the current positions' grid)
+    near_on = run.do_ranging and grid.on and wp.ranging_max_range == rp.max_range and run.lags[LAG_RANGING] == 0
     # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
     # ranging row need not be written at every step
     fill = rec.ranging.shape[0] > 0 or not near_on
@@ -166,6 +169,9 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
         dist_buf = np.empty(geo.seg_a.shape[0])
         gap_buf = np.empty(N)
         grid_b = env_grid(grid, b)
+        lags = run.lags
+        delay_cols = delay_columns(lags, R)[0]
+        delay = mem.sensor_delay[b]
         for t in range(run.n_steps):
             k = run.step0 + t
             _record_state(t, b, w, rec)
@@ -176,12 +182,19 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
                            (sonar_buf, dist, hit_kind, hit, slot), son, grid, grid_b)
                 if sp.update_hz > 0.0:
                     hold_twin(son, mem.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
+                if lags[LAG_SONAR] > 0:
+                    delay_twin(son, delay, delay_cols[LAG_SONAR], k, lags[LAG_SONAR])
             if run.do_down:
                 down_twin(alt, sp, seed, env, k, down)
             if run.do_ranging:
                 ranging_twin(pos, beacons, seed, env, k, rp, rng, grid, grid_b, fill)
+                if lags[LAG_RANGING] > 0:
+                    delay_twin(rng, delay, delay_cols[LAG_RANGING], k, lags[LAG_RANGING])
             if run.do_imu:
                 imu_twin(w.acc[b], yaw, w.yaw_rate[b], mem.bias[b], ip, seed, env, k, imu_a, imu_g)
+                if lags[LAG_IMU] > 0:
+                    delay_twin(imu_a, delay, delay_cols[LAG_IMU], k, lags[LAG_IMU])
+                    delay_twin(imu_g.reshape((N, 1)), delay, delay_cols[LAG_IMU] + 2, k, lags[LAG_IMU])
                 dead_reckon_twin(imu_a, imu_g, wp.dt, mem.dr_pos[b], mem.dr_vel[b], mem.dr_yaw[b])
             # 2. behave
             if run.do_sonar:

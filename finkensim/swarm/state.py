@@ -103,7 +103,7 @@ class SwarmState:
         """The IMU bias and behaviour memory as a :class:`MemoryArrays` record (the same arrays)."""
         m = self.behaviour
         return MemoryArrays(self.imu_bias, m.fail_count, m.wall, m.anchor, m.dr_pos, m.dr_vel, m.dr_yaw,
-                            m.wall_onsets, m.wall_readings, m.sonar_held)
+                            m.wall_onsets, m.wall_readings, m.sonar_held, m.sensor_delay)
 
 
 @dataclass(frozen=True)
@@ -146,7 +146,8 @@ class MemoryArrays(NamedTuple):
     """The sensors' and behaviours' memory as one flat record for the kernels (views of a
     :class:`SwarmState`): bias (B, N, 3) IMU bias; fail_count (B, N, 4) int64; wall (B, N, 4) bool;
     anchor (B, N, 4, 3); dr_pos (B, N, 2) m; dr_vel (B, N, 2) m/s; dr_yaw (B, N) rad; wall_onsets,
-    wall_readings (B, N) int64; sonar_held (B, N, 4) m (see :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
+    wall_readings (B, N) int64; sonar_held (B, N, 4) m; sensor_delay (B, slots, N, W) the latency ring buffer (see
+    :class:`~finkensim.behaviours.wall_check.BehaviourState`)."""
 
     bias: np.ndarray
     fail_count: np.ndarray
@@ -158,6 +159,7 @@ class MemoryArrays(NamedTuple):
     wall_onsets: np.ndarray
     wall_readings: np.ndarray
     sonar_held: np.ndarray
+    sensor_delay: np.ndarray
 
 
 #: RunSpec.ranging_rows of a kernel that takes no rows from it
@@ -168,7 +170,8 @@ class RunSpec(NamedTuple):
     """What a compiled rollout runs: seed, env_ids (B,) int64 global environment indices, step0 (the
     state's step), n_steps, kind (``KIND_*``), dt s, which sensors run (sonar, down, ranging, imu), and
     ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
-    reads is written in it first; (0, 0, 0) where the kernel takes no rows from it)."""
+    reads is written in it first; (0, 0, 0) where the kernel takes no rows from it); lags (3,) int64: sonar, ranging
+    and IMU latency in steps (:func:`~finkensim.sensors.latency.sensor_lags`; zeros: none)."""
 
     seed: int
     env_ids: np.ndarray
@@ -181,6 +184,7 @@ class RunSpec(NamedTuple):
     do_ranging: bool
     do_imu: bool
     ranging_rows: np.ndarray
+    lags: np.ndarray = np.zeros(3, dtype=np.int64)
 
 
 class Recording(NamedTuple):
