@@ -29,7 +29,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from .arena import Arena, HingeParams, walls_step_env, wall_geometry
+from .arena import Arena, HingeParams, bulge_step_env, initial_bulge, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.cellgrid import engine_grid, env_grid, grid_params
@@ -43,7 +43,8 @@ class WorldArrays(NamedTuple):
 
     pos (B, N, 2) m; vel (B, N, 2) m/s; acc (B, N, 2) m/s²; yaw (B, N) rad; yaw_rate (B, N) rad/s;
     theta (B, S) rad; omega (B, S) rad/s; integ (B, S) rad·s; in_wall, in_collision (B, N) bool;
-    wall_contacts, collisions (B, N) int64. Kernels index environment b as ``w.pos[b]`` etc.
+    wall_contacts, collisions (B, N) int64; bulge (B, S) m the curtain bulge ((B, 0) without one). Kernels index
+    environment b as ``w.pos[b]`` etc.
     """
 
     pos: np.ndarray
@@ -58,6 +59,7 @@ class WorldArrays(NamedTuple):
     in_collision: np.ndarray
     wall_contacts: np.ndarray
     collisions: np.ndarray
+    bulge: np.ndarray
 
 
 @njit(cache=True)
@@ -119,6 +121,7 @@ class WorldState:
     step: int
     seed: int
     env_ids: np.ndarray
+    bulge: np.ndarray  # (B, S) m each plate's curtain bulge toward the arena ((B, 0): no bulge, walls.model)
 
     @property
     def n_envs(self) -> int:
@@ -136,7 +139,7 @@ class WorldState:
     def arrays(self) -> WorldArrays:
         """The state arrays as a :class:`WorldArrays` record (the same arrays, not copies)."""
         return WorldArrays(self.pos, self.vel, self.acc, self.yaw, self.yaw_rate, self.theta, self.omega,
-                           self.integ, self.in_wall, self.in_collision, self.wall_contacts, self.collisions)
+                           self.integ, self.in_wall, self.in_collision, self.wall_contacts, self.collisions, self.bulge)
 
     def copy(self) -> "WorldState":
         return replace(self, **{f.name: getattr(self, f.name).copy() for f in fields(self)
@@ -190,8 +193,11 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
     update_contacts_env(pos, cp.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
                         w.collisions[b], g, grid)
-    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, max(hp.threshold, geo.lever), dist_buf)
+    cutoff = max(hp.threshold, geo.lever, hp.bulge_cutoff)  # the bulge's (0 without one) reaches farther
+    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, cutoff, dist_buf)
     walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hp, geo.lever, dt)
+    if w.bulge.shape[1] > 0:
+        bulge_step_env(w.bulge[b], dist_buf, hp, dt, False)
 
 
 @njit(cache=True, parallel=True)
@@ -355,7 +361,7 @@ class World:
             theta=np.zeros((B, S)), omega=np.zeros((B, S)), integ=np.zeros((B, S)),
             in_wall=np.zeros((B, N), dtype=bool), in_collision=np.zeros((B, N), dtype=bool),
             wall_contacts=np.zeros((B, N), dtype=np.int64), collisions=np.zeros((B, N), dtype=np.int64),
-            step=0, seed=seed, env_ids=env_ids,
+            step=0, seed=seed, env_ids=env_ids, bulge=initial_bulge(self.geometry, self.hinge_params, pos, self.copter_params.radius),
         )
 
     def check_commands(self, state: WorldState, cmd_vel, cmd_yaw_rate) -> tuple[np.ndarray, np.ndarray]:

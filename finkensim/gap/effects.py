@@ -237,7 +237,12 @@ register(Effect(
         "configured walls)",
     initial=lambda b: {"amplitude": b.bulge_amplitude, "reach": b.bulge_reach, "response": b.bulge_response,
                        "shape": b.bulge_shape},
-    expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence")))
+    expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence"),
+    calibrate=lambda v, cfg: {
+        "walls.bending": True, "walls.bulge_amplitude": float(v["amplitude"]), "walls.bulge_reach": float(v["reach"]),
+        "walls.bulge_response": float(v["response"]), "walls.bulge_shape": float(v["shape"]),
+        # the hinge stays as the config flew it (rigid walls: the bulge alone)
+        "walls.model": "hinge+bulge" if cfg.walls.bending and "hinge" in cfg.walls.model else "bulge"}))
 register(Effect(
     "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),
     _crosstalk_geometric,

@@ -75,7 +75,8 @@ class ModelParams:
         """The simulator's models of ``cfg`` (the ranging mixture file is read here) and neutral gap knobs."""
         return cls(sonar=SonarModel.from_config(cfg), ranging=RangingModel.from_config(cfg.ranging),
                    imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
-                   wall_gain=1.0 if cfg.walls.bending else 0.0, beam_rays=int(cfg.sonar.beam_rays),
+                   wall_gain=1.0 if cfg.walls.bending and "hinge" in cfg.walls.model else 0.0,
+                   beam_rays=int(cfg.sonar.beam_rays), **_bulge_from_config(cfg.walls),
                    latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency)
 
     def with_(self, **kw) -> "ModelParams":
@@ -100,6 +101,13 @@ class ModelParams:
         """(accelerometer m/s²/√s, gyro rad/s/√s) bias random-walk densities of the IMU model."""
         sq = math.sqrt(self.imu.dt)
         return self.imu.acc_walk / sq, self.imu.gyro_walk / sq
+
+
+def _bulge_from_config(walls) -> dict:
+    """The ``bulge_*`` fields of the curtain bulge the simulator flies (``walls.model``; amplitude 0 without)."""
+    on = walls.bending and "bulge" in walls.model
+    return dict(bulge_amplitude=walls.bulge_amplitude if on else 0.0, bulge_reach=walls.bulge_reach,
+                bulge_response=walls.bulge_response, bulge_shape=walls.bulge_shape)
 
 
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")

@@ -28,8 +28,8 @@ from ..sensors.ultrasonic import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.twin import INTERNAL
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import (body_to_world_twin, imu_twin, plates_twin, ranging_twin, sonar_twin, sonar_work_buffers,
-                     step_twin)
+from .kernel import (body_to_world_twin, imu_twin, plates_twin, ranging_twin, shift_twin, sonar_twin,
+                     sonar_work_buffers, step_twin)
 from .state import NO_RANGING_ROWS, RunSpec, SwarmState
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_step_serial", "PARALLEL_MIN_COPTERS"]
@@ -62,6 +62,8 @@ def _sense_env(b, k, w, bias, run, obs, geo, sp, rp, beacons, ip, bufs, grid, gr
     yaw_b = w.yaw[b]
     if run.do_sonar:
         plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+        if w.bulge.shape[1] > 0:  # the curtain bulge (walls.model) on top of the hinge
+            shift_twin(w.bulge[b], geo.normal, pa, pb)
         sonar_twin(pos_b, yaw_b, pa, pb, geo.width, geo.length, sp, seed, env, k,
                    (sonar_buf, dist, hit_kind, hit, slot), obs.sonar[b], grid, grid_b)
     if run.do_ranging:

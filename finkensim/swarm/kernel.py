@@ -33,6 +33,7 @@ from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultra
 from ..kernels.cellgrid import env_grid
 from ..kernels.threads import run_ranges
 from ..kernels.twin import INTERNAL, twin
+from ..arena import shift_plates_env
 from ..world import step_env
 from .state import KIND_ATTRACTION, KIND_RANDOM_WALK
 
@@ -52,6 +53,7 @@ attraction_twin = twin(attraction_env)
 body_to_world_twin = twin(body_to_world_env)
 random_walk_twin = twin(random_walk_env)
 step_twin = twin(step_env)
+shift_twin = twin(shift_plates_env)
 delay_twin = twin(delay_env)
 
 
@@ -178,6 +180,8 @@ def swarm_env(span, w, mem, run, rec, cp, hp, geo, sp, rp, beacons, ip, rw, ap, 
             # 1. sense
             if run.do_sonar:
                 plates_twin(w.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, pa, pb)
+                if w.bulge.shape[1] > 0:  # the curtain bulge (walls.model) on top of the hinge
+                    shift_twin(w.bulge[b], geo.normal, pa, pb)
                 sonar_twin(pos, yaw, pa, pb, geo.width, geo.length, sp, seed, env, k,
                            (sonar_buf, dist, hit_kind, hit, slot), son, grid, grid_b)
                 if sp.update_hz > 0.0:

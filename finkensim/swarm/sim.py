@@ -231,7 +231,7 @@ class SwarmSim:
         sonar = ideal = hit = None
         if on["sonar"]:
             sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
-                                                       env_ids, k, return_ideal=True)
+                                                       env_ids, k, return_ideal=True, bulge=ws.bulge)
         down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
         rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging) if on["ranging"] else None
         bias = state.imu_bias.copy()
