@@ -173,6 +173,8 @@ class SonarConfig(_Section):
                              "beyond the flight)")
     latency: float = _f(0.0, "s", 0.0, 2.0, doc="horizontal-sonar latency: each reading describes the world this long "
                         "earlier, in whole simulation steps (the gap effect latency fits it; 0 = none)")
+    correction_file: str = _f("", doc="a learned correction of the horizontal sonars (JSON table written by finkensim "
+                              "gap --out beside calibrated.toml: docs/calibration.md); empty = none")
 
 
 @dataclass(frozen=True)

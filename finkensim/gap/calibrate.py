@@ -19,7 +19,8 @@ from ..atomic import write_text_atomic
 from ..config import Config
 from . import effects as fx
 
-__all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "write_calibrated"]
+__all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "correction_tables",
+           "write_calibrated"]
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ def _diagnosed_config(report) -> Config:
     return cfg
 
 
-def _walk(report) -> tuple[Config, list[CalibratedEffect]]:
+def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, list[CalibratedEffect]]:
     cfg = _diagnosed_config(report)
     alone = {e["name"]: e.get("shrink_heldout", float("nan")) for e in report.effects}
     steps = []
@@ -54,7 +55,16 @@ def _walk(report) -> tuple[Config, list[CalibratedEffect]]:
         updates = effect.calibrate(params, cfg)
         cfg = cfg.replace(updates)
         steps.append(CalibratedEffect(name, dict(params), dict(updates), True, alone.get(name, float("nan"))))
+    if correction_file is not None:
+        cfg = cfg.replace({"sonar.correction_file": str(correction_file)})
     return cfg, steps
+
+
+def correction_tables(report) -> dict:
+    """The learned correction's tables of ``report`` (sensor → :class:`~finkensim.sensors.correction_table.
+    CorrectionTable`; empty without a correction)."""
+    corr = report.details.correction
+    return dict(getattr(corr, "tables", None) or {})
 
 
 def calibration(report) -> list[CalibratedEffect]:
@@ -63,9 +73,10 @@ def calibration(report) -> list[CalibratedEffect]:
     return _walk(report)[1]
 
 
-def calibrated_config(report) -> Config:
-    """The diagnosed config with every selected, flyable effect at its fitted parameters."""
-    return _walk(report)[0]
+def calibrated_config(report, correction_file: str | Path | None = None) -> Config:
+    """The diagnosed config with every selected, flyable effect at its fitted parameters (and
+    ``sonar.correction_file`` set to ``correction_file`` when given: :func:`write_calibrated` writes it)."""
+    return _walk(report, correction_file)[0]
 
 
 def _plain(v):
@@ -79,11 +90,12 @@ def _fmt_params(params: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in params.items())
 
 
-def calibrated_toml(report) -> str:
-    """The calibrated config as TOML text: every key of every section, the keys an effect set commented."""
+def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
+    """The calibrated config as TOML text: every key of every section, the keys an effect set commented
+    (``correction_file``: the learned correction's table file, referenced as ``sonar.correction_file``)."""
     import tomlkit
 
-    cfg, steps = _walk(report)
+    cfg, steps = _walk(report, correction_file)
     v = report.verdict
     shrink = report.details.total_shrink
     doc = tomlkit.document()
@@ -99,6 +111,10 @@ def calibrated_toml(report) -> str:
             doc.add(tomlkit.comment(f"NOT FLOWN: {s.name} ({_fmt_params(s.params)}) has no simulator counterpart yet"))
     if not steps:
         doc.add(tomlkit.comment("no effect was selected: this is the diagnosed config unchanged"))
+    tables = correction_tables(report)
+    for sensor in sorted(set(tables) - {"ultrasonic"}):
+        doc.add(tomlkit.comment(f"NOT FLOWN: the learned correction of {sensor} (the simulator applies the "
+                                "ultrasonic table only)"))
     set_by = {key: s for s in steps for key in s.updates}
     data = cfg.to_dict()
     doc.add("profile", data.pop("profile"))
@@ -111,12 +127,24 @@ def calibrated_toml(report) -> str:
                 alone = f"; alone it removes {100 * s.shrink_heldout:.0f} % of the held-out gap" \
                     if s.shrink_heldout == s.shrink_heldout else ""
                 table[key].comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}")
+            elif f"{section}.{key}" == "sonar.correction_file" and correction_file is not None:
+                table[key].comment("the learned correction (residual quantiles on a grid of the model median) "
+                                   "of the unexplained gap")
         doc.add(section, table)
     return tomlkit.dumps(doc)
 
 
 def write_calibrated(report, path: str | Path) -> Path:
-    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path."""
+    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path. With a learned correction of the
+    sonars, its table goes beside it as ``correction.json`` (:mod:`finkensim.sensors.correction_table`),
+    referenced from the config by its absolute path."""
+    from ..sensors.correction_table import write_correction
+
     path = Path(path)
-    write_text_atomic(path, calibrated_toml(report))
+    tables = correction_tables(report)
+    corr = None
+    if "ultrasonic" in tables:
+        corr = write_correction(path.with_name("correction.json"), tables,
+                                {"flights": report.flights, "method": report.details.correction.method}).resolve()
+    write_text_atomic(path, calibrated_toml(report, corr))
     return path

@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config
-from ..kernels.rng import STREAM_EFFECT, counter_key, normal
+from ..kernels.rng import STREAM_CORRECTION, STREAM_EFFECT, counter_key, normal, uniform
+from ..sensors.correction_table import correction_quantile
 from ..sensors.imu import ImuModel
 from ..sensors.latency import lag_steps
 from ..sensors.ranging import RangingModel
@@ -162,6 +163,13 @@ def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, err, ou
         else:
             for m in range(M):
                 out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps, err[i, m])
+        if sp.correction.shape[0] > 0:  # the learned correction the simulator flies (sonar.correction_file)
+            ckey = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_CORRECTION)
+            for m in range(M):
+                if kind[i, m] != HIT_NONE and dist[i, m] < sps.max_range:
+                    ref = sps.range_scale * dist[i, m] + sps.bias
+                    r = ref + correction_quantile(sp.correction, ref, uniform(ckey, m))
+                    out[i, m] = min(sps.max_range, max(sps.min_range, r))
 
 
 @njit(cache=True, parallel=True)
