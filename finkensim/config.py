@@ -233,6 +233,8 @@ class GapConfig(_Section):
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")
     imu_velocity_baseline: float = _f(0.2, "s", 0.0, 60.0, doc="velocities compared with the IMU are mean velocities over this baseline (divides tracking noise; at most gap.imu_window)")
     effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
+    param_intervals: bool = _f(True, doc="bootstrap each selected effect's fitted parameters (an interval and a "
+                               "distribution per parameter, written into calibrated.toml: docs/calibration.md)")
 
 
 @dataclass(frozen=True)

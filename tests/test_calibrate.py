@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import finkensim as fs
-from finkensim.config import load_config
+from finkensim.config import ConfigError, load_config
 from finkensim.gap import effects as fx
 from finkensim.gap.model import ModelParams
 
@@ -124,3 +124,35 @@ def test_a_report_without_its_config_says_why():
     with pytest.raises(ValueError, match="does not carry the config"):
         report.calibrated_config()
     assert replace(report.details).config is None
+
+
+def test_calibration_intervals_go_into_the_file_and_the_sweep(sonar_bias_report, tmp_path):
+    """Each fitted parameter's bootstrap interval is in calibrated.toml, its draws in calibration_samples.json, and a
+    sweep with calibration = "sample" runs each replicate under a draw chosen from the sweep seed."""
+    import json
+
+    from finkensim.sweep import Sweep, run_sweep
+
+    report, cfg, truth = sonar_bias_report
+    iv = report.details.param_intervals["sonar_bias"]["bias"]
+    fitted = report.details.added_params["sonar_bias"]["bias"]
+    assert iv["lo"] <= fitted <= iv["hi"] and 0.0 < iv["hi"] - iv["lo"] < 0.02
+    assert abs(sum(iv["probabilities"]) - 1.0) < 1e-9
+    paths = report.write(tmp_path)
+    assert "95 % interval: bias in [" in paths["calibrated"].read_text()
+    samples = json.loads((tmp_path / "calibration_samples.json").read_text())["samples"]
+    assert all(min(iv["values"]) <= s["sonar.bias"] <= max(iv["values"]) for s in samples)
+    text = (f'calibration = "sample"\nreplicates = 3\nduration = 0.2\nseed = 5\nmetrics = ["cohesion"]\n'
+            f'[base]\nconfig = "{paths["calibrated"].name}"\n[grid]\n"copters.n" = [2]\n')
+    (tmp_path / "sweep.toml").write_text(text)
+    sweeps = [Sweep.from_toml(tmp_path / "sweep.toml") for _ in range(2)]
+    biases = [[s.run_config(r).sonar.bias for r in s.runs()] for s in sweeps]
+    assert biases[0] == biases[1] and len(set(biases[0])) > 1
+    assert all(b in {x["sonar.bias"] for x in samples} for b in biases[0])
+    (tmp_path / "fixed.toml").write_text(text.replace('"sample"', '"fixed"'))
+    assert {Sweep.from_toml(tmp_path / "fixed.toml").run_config(r).sonar.bias for r in sweeps[0].runs()} == {fitted}
+    table = run_sweep(sweeps[0], executor="serial", progress=False)
+    assert (table["status"] == "ok").all() and len(table) == 3
+    (tmp_path / "bad.toml").write_text(text.replace('"sample"', '"samples"'))
+    with pytest.raises(ConfigError, match="calibration = 'samples': expected one of 'fixed', 'sample'"):
+        Sweep.from_toml(tmp_path / "bad.toml")
