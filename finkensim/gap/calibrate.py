@@ -169,15 +169,16 @@ def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
     for section, values in data.items():
         table = tomlkit.table()
         for key, value in values.items():
-            table.add(key, _plain(value))
+            item = tomlkit.item(_plain(value))  # an item, not the value: a bool read back from a table takes no comment
             s = set_by.get(f"{section}.{key}")
             if s is not None:
                 alone = f"; alone it removes {100 * s.shrink_heldout:.0f} % of the held-out gap" \
                     if s.shrink_heldout == s.shrink_heldout else ""
-                table[key].comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}{_fmt_intervals(s.intervals)}")
+                item.comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}{_fmt_intervals(s.intervals)}")
             elif f"{section}.{key}" == "sonar.correction_file" and correction_file is not None:
-                table[key].comment("the learned correction (residual quantiles on a grid of the model median) "
-                                   "of the unexplained gap")
+                item.comment("the learned correction (residual quantiles on a grid of the model median) "
+                             "of the unexplained gap")
+            table.add(key, item)
         doc.add(section, table)
     return tomlkit.dumps(doc)
 

@@ -336,7 +336,10 @@ register(Effect(
     (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
     lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
     doc="tracking noise in the logged poses", catch_all=True,
-    calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"]}))
+    # the flight-log writer records simulated poses with it, and a diagnosis of new logs under the calibrated config
+    # takes it instead of the logs' declared noise
+    calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"],
+                              "gap.tracking_sigma_xy": v["sigma_xy"], "gap.tracking_sigma_yaw": v["sigma_yaw"]}))
 register(Effect(
     "imu_bias", ("imu",),
     (Param("acc_x", -1.0, 1.0, unit="m/s^2"), Param("acc_y", -1.0, 1.0, unit="m/s^2"),
