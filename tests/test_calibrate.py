@@ -156,3 +156,15 @@ def test_calibration_intervals_go_into_the_file_and_the_sweep(sonar_bias_report,
     (tmp_path / "bad.toml").write_text(text.replace('"sample"', '"samples"'))
     with pytest.raises(ConfigError, match="calibration = 'samples': expected one of 'fixed', 'sample'"):
         Sweep.from_toml(tmp_path / "bad.toml")
+
+
+def test_calibrated_table_counts_trials_without_a_gap():
+    from finkensim.gap.validate_calibrate import calibrated_table
+
+    rows = [{"case": "sonar_bias", "calibrated_significant": s, "calibrated_gap_ratio": r, "calibrated_correction": ""}
+            for s, r in ((False, 0.1), (False, 0.2), (True, 0.5), (False, 0.0))]
+    rows += [{"case": "foreign", "calibrated_significant": True, "calibrated_gap_ratio": 0.4,
+              "calibrated_correction": "sonar.correction_file"}, {"case": "other"}]
+    md = calibrated_table(rows)
+    assert "| sonar_bias | 4 | 75 % |" in md and "| 15 % | 0/4 |" in md
+    assert "| foreign | 1 | 0 % |" in md and "| 40 % | 1/1 |" in md and "other" not in md
