@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from .config import ArenaConfig, WallConfig
+from .kernels.geometry import nearest_body_distance_env
 from .kernels.trig import sin_fast_array, sin_half_pi
 
 GRAVITY = 9.81  # m/s²
@@ -88,6 +89,12 @@ class HingeParams(NamedTuple):
     inertia: float  # kg m²
     gravity_torque: float  # m g L/2, N m (times sin θ)
     substeps: int
+    # the curtain bulge (walls.model "bulge" / "hinge+bulge"; amplitude 0: none): see bulge_step_env
+    bulge_amplitude: float = 0.0  # m
+    bulge_reach: float = 0.3  # m
+    bulge_shape: float = 2.0
+    bulge_response: float = 0.0  # s
+    bulge_cutoff: float = 0.0  # m, beyond it the bulge target is 0 in float64 (0 without a bulge)
 
 
 @njit(cache=True, inline="always")
@@ -253,6 +260,59 @@ def walls_step_env(theta, omega, integ, dist, hp, lever, dt):
             omega[s] = min(omega[s], 0.0)
 
 
+def bulge_cutoff(reach: float, shape: float) -> float:
+    """The distance (m) beyond which the bulge target ``exp(−(d/reach)^shape)`` is below 1e-300 (0 for the
+    simulator: the world step measures plate distances up to it only)."""
+    return float(reach * (300.0 * np.log(10.0)) ** (1.0 / shape))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def bulge_target(d, amplitude, reach, shape):
+    """The curtain bulge's target displacement (m, toward the arena) of a plate d m from the nearest copter body:
+    ``amplitude · exp(−(d/reach)^shape)`` (shape 2 a Gaussian; larger a flat bulge that ends sharply near reach).
+    The law of the gap effect ``wall_bulge`` (:func:`finkensim.gap.bulge.bulge_displacement`)."""
+    return amplitude * np.exp(-(d / reach) ** shape)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def bulge_alpha(dt, response):
+    """The first-order response's step factor ``1 − exp(−dt/response)`` over dt s (1 for response 0: at once)."""
+    return 1.0 if response <= 0.0 else -np.expm1(-dt / response)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def bulge_step_env(bulge, dist, hp, dt, first):
+    """Advance the plates' bulge (S,) m in place to the nearest-body distances dist (S,) m: at once to the target
+    when ``first`` (at rest on it, as the diagnosis starts), else ``x += alpha·(target − x)`` with
+    :func:`bulge_alpha` (the curtain keeps bending after the copter passed). ``hp``: a :class:`HingeParams`."""
+    alpha = 1.0 if first else bulge_alpha(dt, hp.bulge_response)
+    for s in range(bulge.shape[0]):
+        target = bulge_target(dist[s], hp.bulge_amplitude, hp.bulge_reach, hp.bulge_shape)
+        bulge[s] = target if first else bulge[s] + alpha * (target - bulge[s])
+
+
+def initial_bulge(geo, hp, pos: np.ndarray, radius: float) -> np.ndarray:
+    """(B, S) m: each plate of ``geo`` (a :class:`WallGeometry`) at rest on its bulge target for copter centres
+    pos (B, N, 2) m of body radius m; (B, 0) when ``hp`` (a :class:`HingeParams`) has no bulge."""
+    out = np.zeros((pos.shape[0], geo.seg_a.shape[0] if hp.bulge_cutoff > 0.0 else 0))
+    for b in range(out.shape[0] if out.shape[1] else 0):
+        d = np.empty(out.shape[1])
+        nearest_body_distance_env(geo.seg_a, geo.seg_b, np.ascontiguousarray(pos[b]), float(radius), d)
+        bulge_step_env(out[b], d, hp, 0.0, True)
+    return out
+
+
+@njit(cache=True, inline="always")
+def shift_plates_env(shift, normal, pa, pb):
+    """Move each plate's ends pa, pb (S, 2) m in place by shift (S,) m along its inward normal (S, 2) (the bulge
+    on top of the hinge's displacement; the gap replay shifts the same way)."""
+    for p in range(shift.shape[0]):
+        pa[p, 0] += shift[p] * normal[p, 0]
+        pa[p, 1] += shift[p] * normal[p, 1]
+        pb[p, 0] += shift[p] * normal[p, 0]
+        pb[p, 1] += shift[p] * normal[p, 1]
+
+
 @njit(cache=True, parallel=True)
 def walls_step(theta, omega, integ, dist, hp, lever, dt):
     """Batched hinge update in place. theta, omega, integ, dist: (B, S); lever (m) as in :class:`Arena`."""
@@ -308,8 +368,10 @@ class Arena:
                 nrm.append(normals[w])
                 widx.append(w)
         m, Lp = walls.plate_mass, walls.plate_length
+        hinge_on = walls.model in ("hinge", "hinge+bulge")
+        bulge = walls.bending and walls.model in ("bulge", "hinge+bulge") and walls.bulge_amplitude != 0.0
         hinge = HingeParams(
-            bending=bool(walls.bending),
+            bending=bool(walls.bending and hinge_on),
             threshold=walls.threshold,
             max_amplitude=np.deg2rad(walls.max_amplitude_deg),
             p=walls.pid_p,
@@ -320,6 +382,11 @@ class Arena:
             inertia=m * Lp * Lp / 3.0,
             gravity_torque=m * GRAVITY * Lp / 2.0,
             substeps=walls.substeps,
+            bulge_amplitude=walls.bulge_amplitude if bulge else 0.0,
+            bulge_reach=walls.bulge_reach,
+            bulge_shape=walls.bulge_shape,
+            bulge_response=walls.bulge_response,
+            bulge_cutoff=bulge_cutoff(walls.bulge_reach, walls.bulge_shape) if bulge else 0.0,
         )
         arr = lambda v: np.ascontiguousarray(np.array(v, dtype=float))  # noqa: E731
         return cls(

@@ -56,6 +56,17 @@ class WallConfig(_Section):
     plate_width_fraction: float = _f(0.9, "", 0.0, 1.0, lo_open=True, doc="plate width as a fraction of the segment pitch")
     hinge_height: float = _f(1.0, "m", 0.0, 20.0, lo_open=True, doc="height of the horizontal hinge above the floor")
     substeps: int = _f(10, "", 1, 1000, doc="hinge integration substeps per world step")
+    model: str = _f("hinge", choices=("hinge", "bulge", "hinge+bulge"),
+                    doc="what moves the plates: the hinge (plates pulled toward passing copters), the curtain bulge "
+                        "(each plate displaced toward the arena by bulge_amplitude * exp(-(d/bulge_reach)^bulge_shape), d "
+                        "its distance to the nearest copter body, followed with time constant bulge_response; the gap "
+                        "effect wall_bulge fits it), or both")
+    bulge_amplitude: float = _f(0.0, "m", -0.5, 1.0, doc="curtain bulge: displacement of a plate touching a copter")
+    bulge_reach: float = _f(0.3, "m", 0.01, 5.0, doc="curtain bulge: distance scale of the displacement")
+    bulge_shape: float = _f(2.0, "", 0.2, 50.0, doc="curtain bulge: 2 a Gaussian, larger a flat bulge ending sharply "
+                            "near bulge_reach")
+    bulge_response: float = _f(0.0, "s", 0.0, 10.0, doc="curtain bulge: first-order time constant of the plates "
+                               "following it (0: at once)")
 
     def _check(self):
         if self.plate_length > self.hinge_height:
@@ -160,6 +171,10 @@ class SonarConfig(_Section):
     update_phase: float = _f(0.0, "s", 0.0, None, doc="time of the first horizontal-sonar measurement after t = 0 "
                              "with update_hz > 0 (the sonar_update_rate effect fits it; a slow rate's may lie far "
                              "beyond the flight)")
+    latency: float = _f(0.0, "s", 0.0, 2.0, doc="horizontal-sonar latency: each reading describes the world this long "
+                        "earlier, in whole simulation steps (the gap effect latency fits it; 0 = none)")
+    correction_file: str = _f("", doc="a learned correction of the horizontal sonars (JSON table written by finkensim "
+                              "gap --out beside calibrated.toml: docs/calibration.md); empty = none")
 
 
 @dataclass(frozen=True)
@@ -196,6 +211,8 @@ class RangingConfig(_Section):
     dropout_a: float = _f(-100.0, "", -100.0, 100.0, doc="a reading is lost (NaN) with probability "
                           "sigmoid(dropout_a + dropout_b*distance); -100 = never (ranging_dropout)")
     dropout_b: float = _f(0.0, "1/m", -100.0, 100.0, doc="distance slope of the dropout probability")
+    latency: float = _f(0.0, "s", 0.0, 2.0, doc="ranging latency: each reading describes the world this long earlier, "
+                        "in whole simulation steps (the gap effect latency fits it; 0 = none)")
 
 
 @dataclass(frozen=True)
@@ -211,6 +228,8 @@ class ImuConfig(_Section):
     acc_bias: tuple[float, ...] = _f((0.0, 0.0), "m/s^2", -20.0, 20.0, length=2,
                                      doc="constant body-frame accelerometer bias (x, y) (the gap effect imu_bias fits it)")
     gyro_bias: float = _f(0.0, "rad/s", -10.0, 10.0, doc="constant gyro bias (the gap effect imu_bias fits it)")
+    latency: float = _f(0.0, "s", 0.0, 2.0, doc="IMU latency: each sample describes the motion this long earlier, in "
+                        "whole simulation steps (the gap effect latency fits it; 0 = none)")
 
 
 @dataclass(frozen=True)
@@ -235,6 +254,8 @@ class GapConfig(_Section):
     imu_window: float = _f(1.0, "s", 0.0, 60.0, lo_open=True, doc="IMU readings are compared integrated over this window")
     imu_velocity_baseline: float = _f(0.2, "s", 0.0, 60.0, doc="velocities compared with the IMU are mean velocities over this baseline (divides tracking noise; at most gap.imu_window)")
     effects: tuple[str, ...] = _f((), "", doc="catalogued effects to try; empty = all registered")
+    param_intervals: bool = _f(True, doc="bootstrap each selected effect's fitted parameters (an interval and a "
+                               "distribution per parameter, written into calibrated.toml: docs/calibration.md)")
 
 
 @dataclass(frozen=True)

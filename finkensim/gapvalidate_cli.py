@@ -37,6 +37,10 @@ def add_parser(sub) -> None:
     p.add_argument("--workers", type=int, default=2, metavar="N", help="process/Dask workers (default: %(default)s)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (with --executor dask)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--calibrate", action="store_true",
+                   help="also close the loop: write each trial's calibrated config, diagnose new flights of the same "
+                        "truth with it, and tabulate 'no significant gap after calibration' (OUT/calibrated.md; "
+                        "use its own --out)")
     p.set_defaults(func=cmd_gap_validate)
 
 
@@ -84,12 +88,19 @@ def cmd_gap_validate(args) -> int:
     bar = None if args.no_progress else partial(tqdm, desc="gap-validate", file=sys.stderr)
     try:
         rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
-                          executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar)
+                          executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar,
+                          calibrate=args.calibrate)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     table, md = confusion(rows)
     write_atomic(out / "results.csv", lambda p: table.to_csv(p, index=False))
     write_atomic(out / "matrix.md", lambda p: p.write_text(md))
     print(md)
+    if args.calibrate:
+        from .gap.validate_calibrate import calibrated_table
+
+        cal_md = calibrated_table(rows)
+        write_atomic(out / "calibrated.md", lambda p: p.write_text(cal_md))
+        print(cal_md)
     print(f"{prog}: wrote {out / 'matrix.md'} and {out / 'results.csv'}")
     return EXIT_OK

@@ -29,7 +29,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from .arena import Arena, HingeParams, walls_step_env, wall_geometry
+from .arena import Arena, HingeParams, bulge_step_env, initial_bulge, walls_step_env, wall_geometry
 from .config import Config, ConfigError, load_config
 from .copters import CopterParams, move_copter, update_contacts_env
 from .kernels.cellgrid import engine_grid, env_grid, grid_params
@@ -98,6 +98,7 @@ class WorldState(NamedTuple):
     step: int
     seed: int
     env_ids: np.ndarray
+    bulge: np.ndarray  # (B, S) m each plate's curtain bulge toward the arena ((B, 0): no bulge, walls.model)
 
     @property
     def n_envs(self) -> int:
@@ -166,8 +167,11 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
             pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
     update_contacts_env(pos, cp.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
                         w.collisions[b], g, grid)
-    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, max(hp.threshold, geo.lever), dist_buf)
+    cutoff = max(hp.threshold, geo.lever, hp.bulge_cutoff)  # the bulge's (0 without one) reaches farther
+    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, cutoff, dist_buf)
     walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hp, geo.lever, dt)
+    if w.bulge.shape[1] > 0:
+        bulge_step_env(w.bulge[b], dist_buf, hp, dt, False)
 
 
 @njit(cache=True, parallel=True)
@@ -331,7 +335,7 @@ class World:
             theta=np.zeros((B, S)), omega=np.zeros((B, S)), integ=np.zeros((B, S)),
             in_wall=np.zeros((B, N), dtype=bool), in_collision=np.zeros((B, N), dtype=bool),
             wall_contacts=np.zeros((B, N), dtype=np.int64), collisions=np.zeros((B, N), dtype=np.int64),
-            step=0, seed=seed, env_ids=env_ids,
+            step=0, seed=seed, env_ids=env_ids, bulge=initial_bulge(self.geometry, self.hinge_params, pos, self.copter_params.radius),
         )
 
     def check_commands(self, state: WorldState, cmd_vel, cmd_yaw_rate) -> tuple[np.ndarray, np.ndarray]:

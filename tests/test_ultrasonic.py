@@ -732,7 +732,7 @@ def test_sonar_scalars_are_the_models_scalar_fields():
     sp = sp._replace(bias=0.07, range_scale=1.03, crosstalk_hear_probability=0.5)
     sc = sonar_scalars(sp)
     assert isinstance(sc, SonarScalars)
-    assert set(SonarScalars._fields) == set(SonarModel._fields) - {"mount_yaw", "ray_angles"}
+    assert set(SonarScalars._fields) == set(SonarModel._fields) - {"mount_yaw", "ray_angles", "correction"}
     for f in SonarScalars._fields:
         assert getattr(sc, f) == getattr(sp, f), f
 

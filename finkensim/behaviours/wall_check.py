@@ -109,7 +109,9 @@ class BehaviourState(NamedTuple):
     start frame; wall_onsets (B, N) int64: flags set since init; wall_readings (B, N) int64: echoes
     judged to be walls since init; sonar_held (B, N, K) m: the sonars' last measurements, shown between
     measurements when ``sonar.update_hz`` > 0 (:mod:`finkensim.sensors.sonar_hold`); commands (B, N, W) float64:
-    the flown behaviour's own memory (W = ``Behaviour.memory``, :mod:`finkensim.behaviours.registry`).
+    the flown behaviour's own memory (W = ``Behaviour.memory``, :mod:`finkensim.behaviours.registry`);
+    sensor_delay (B, slots, N, W): the ring buffer of delayed readings when a sensor has a latency
+    (:mod:`finkensim.sensors.latency`; (B, 0, N, 0) without).
     """
 
     fail_count: np.ndarray
@@ -122,6 +124,7 @@ class BehaviourState(NamedTuple):
     wall_readings: np.ndarray
     sonar_held: np.ndarray
     commands: np.ndarray
+    sensor_delay: np.ndarray
 
     @classmethod
     def zeros(cls, n_envs: int, n_copters: int, n_sonars: int = 4, memory: int = 0) -> "BehaviourState":
@@ -131,7 +134,8 @@ class BehaviourState(NamedTuple):
         return cls(np.zeros((B, N, K), dtype=np.int64), np.zeros((B, N, K), dtype=np.bool_),
                    np.zeros((B, N, K, 3)), np.zeros((B, N, 2)), np.zeros((B, N, 2)), np.zeros((B, N)),
                    np.zeros((B, N), dtype=np.int64), np.zeros((B, N), dtype=np.int64), np.zeros((B, N, K)),
-                   np.zeros((B, N, int(memory))))
+                   np.zeros((B, N, int(memory))),
+                   np.zeros((B, 0, N, 0)))
 
     def copy(self) -> "BehaviourState":
         """Copies of every array."""

@@ -12,26 +12,31 @@ header and :func:`calibration` marks it ``flown=False``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..atomic import write_text_atomic
 from ..config import Config
 from . import effects as fx
 
-__all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "write_calibrated"]
+__all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "calibration_samples",
+           "correction_tables", "write_calibrated", "SAMPLES_FILE"]
 
 
 @dataclass(frozen=True)
 class CalibratedEffect:
     """One selected effect: its fitted ``params``, the config ``updates`` (dotted key → value) that fly it, whether
-    the simulator flies it (``flown``), and its held-out shrink alone (``shrink_heldout``, NaN if unknown)."""
+    the simulator flies it (``flown``), its held-out shrink alone (``shrink_heldout``, NaN if unknown) and its
+    parameters' bootstrap distributions (``intervals``: parameter → {value, lo, hi, unit, values, probabilities},
+    :mod:`finkensim.gap.intervals`; empty when not computed)."""
 
     name: str
     params: dict
     updates: dict
     flown: bool
     shrink_heldout: float
+    intervals: dict = field(default_factory=dict)
 
 
 def _diagnosed_config(report) -> Config:
@@ -42,19 +47,30 @@ def _diagnosed_config(report) -> Config:
     return cfg
 
 
-def _walk(report) -> tuple[Config, list[CalibratedEffect]]:
+def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, list[CalibratedEffect]]:
     cfg = _diagnosed_config(report)
     alone = {e["name"]: e.get("shrink_heldout", float("nan")) for e in report.effects}
+    intervals = getattr(report.details, "param_intervals", None) or {}
     steps = []
     for name, params in report.details.added_params.items():
         effect = fx.REGISTRY.get(name)
+        iv = dict(intervals.get(name, {}))
         if effect is None or effect.calibrate is None:
-            steps.append(CalibratedEffect(name, dict(params), {}, False, alone.get(name, float("nan"))))
+            steps.append(CalibratedEffect(name, dict(params), {}, False, alone.get(name, float("nan")), iv))
             continue
         updates = effect.calibrate(params, cfg)
         cfg = cfg.replace(updates)
-        steps.append(CalibratedEffect(name, dict(params), dict(updates), True, alone.get(name, float("nan"))))
+        steps.append(CalibratedEffect(name, dict(params), dict(updates), True, alone.get(name, float("nan")), iv))
+    if correction_file is not None:
+        cfg = cfg.replace({"sonar.correction_file": str(correction_file)})
     return cfg, steps
+
+
+def correction_tables(report) -> dict:
+    """The learned correction's tables of ``report`` (sensor → :class:`~finkensim.sensors.correction_table.
+    CorrectionTable`; empty without a correction)."""
+    corr = report.details.correction
+    return dict(getattr(corr, "tables", None) or {})
 
 
 def calibration(report) -> list[CalibratedEffect]:
@@ -63,9 +79,10 @@ def calibration(report) -> list[CalibratedEffect]:
     return _walk(report)[1]
 
 
-def calibrated_config(report) -> Config:
-    """The diagnosed config with every selected, flyable effect at its fitted parameters."""
-    return _walk(report)[0]
+def calibrated_config(report, correction_file: str | Path | None = None) -> Config:
+    """The diagnosed config with every selected, flyable effect at its fitted parameters (and
+    ``sonar.correction_file`` set to ``correction_file`` when given: :func:`write_calibrated` writes it)."""
+    return _walk(report, correction_file)[0]
 
 
 def _plain(v):
@@ -79,11 +96,51 @@ def _fmt_params(params: dict) -> str:
     return ", ".join(f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}" for k, v in params.items())
 
 
-def calibrated_toml(report) -> str:
-    """The calibrated config as TOML text: every key of every section, the keys an effect set commented."""
+def _fmt_intervals(intervals: dict) -> str:
+    parts = [f"{k} in [{d['lo']:.4g}, {d['hi']:.4g}]{(' ' + d['unit']) if d.get('unit') else ''}"
+             for k, d in intervals.items()]
+    return f"; 95 % interval: {', '.join(parts)}" if parts else ""
+
+
+def calibration_samples(report, n: int = 200, seed: int = 0) -> list[dict]:
+    """``n`` draws of the calibration (each a dict dotted key → value, the updates of every flown effect): each
+    selected effect's parameters drawn independently from their bootstrap distributions (a parameter without one at
+    its fit), mapped to config keys in the selection's order as :func:`calibrated_config` does. Empty when no flown
+    effect has a distribution."""
+    import numpy as np
+
+    steps = calibration(report)
+    if not any(s.flown and s.intervals for s in steps):
+        return []
+    rng = np.random.default_rng(seed)
+    base = _diagnosed_config(report)
+    out = []
+    for _ in range(n):
+        cfg, sample = base, {}
+        for s in steps:
+            if not s.flown:
+                continue
+            values = dict(s.params)
+            for name, d in s.intervals.items():
+                values[name] = float(rng.choice(np.asarray(d["values"], float), p=np.asarray(d["probabilities"])))
+            updates = fx.REGISTRY[s.name].calibrate(values, cfg)
+            cfg = cfg.replace(updates)
+            sample.update(updates)
+        out.append({k: _plain(v) for k, v in sample.items()})
+    return out
+
+
+#: the calibration-samples file beside calibrated.toml (``finkensim sweep``'s ``calibration = "sample"`` reads it)
+SAMPLES_FILE = "calibration_samples.json"
+SAMPLES_FORMAT = "finkensim-calibration-samples"
+
+
+def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
+    """The calibrated config as TOML text: every key of every section, the keys an effect set commented
+    (``correction_file``: the learned correction's table file, referenced as ``sonar.correction_file``)."""
     import tomlkit
 
-    cfg, steps = _walk(report)
+    cfg, steps = _walk(report, correction_file)
     v = report.verdict
     shrink = report.details.total_shrink
     doc = tomlkit.document()
@@ -99,24 +156,48 @@ def calibrated_toml(report) -> str:
             doc.add(tomlkit.comment(f"NOT FLOWN: {s.name} ({_fmt_params(s.params)}) has no simulator counterpart yet"))
     if not steps:
         doc.add(tomlkit.comment("no effect was selected: this is the diagnosed config unchanged"))
+    if any(s.intervals for s in steps):
+        doc.add(tomlkit.comment(f"parameter intervals: block bootstrap of the training readings; {SAMPLES_FILE} "
+                                "beside this file holds draws for finkensim sweep's calibration = \"sample\""))
+    tables = correction_tables(report)
+    for sensor in sorted(set(tables) - {"ultrasonic"}):
+        doc.add(tomlkit.comment(f"NOT FLOWN: the learned correction of {sensor} (the simulator applies the "
+                                "ultrasonic table only)"))
     set_by = {key: s for s in steps for key in s.updates}
     data = cfg.to_dict()
     doc.add("profile", data.pop("profile"))
     for section, values in data.items():
         table = tomlkit.table()
         for key, value in values.items():
-            table.add(key, _plain(value))
+            item = tomlkit.item(_plain(value))  # an item, not the value: a bool read back from a table takes no comment
             s = set_by.get(f"{section}.{key}")
             if s is not None:
                 alone = f"; alone it removes {100 * s.shrink_heldout:.0f} % of the held-out gap" \
                     if s.shrink_heldout == s.shrink_heldout else ""
-                table[key].comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}")
+                item.comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}{_fmt_intervals(s.intervals)}")
+            elif f"{section}.{key}" == "sonar.correction_file" and correction_file is not None:
+                item.comment("the learned correction (residual quantiles on a grid of the model median) "
+                             "of the unexplained gap")
+            table.add(key, item)
         doc.add(section, table)
     return tomlkit.dumps(doc)
 
 
 def write_calibrated(report, path: str | Path) -> Path:
-    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path."""
+    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path. With a learned correction of the
+    sonars, its table goes beside it as ``correction.json`` (:mod:`finkensim.sensors.correction_table`),
+    referenced from the config by its absolute path."""
+    from ..sensors.correction_table import write_correction
+
     path = Path(path)
-    write_text_atomic(path, calibrated_toml(report))
+    tables = correction_tables(report)
+    corr = None
+    if "ultrasonic" in tables:
+        corr = write_correction(path.with_name("correction.json"), tables,
+                                {"flights": report.flights, "method": report.details.correction.method}).resolve()
+    samples = calibration_samples(report)
+    if samples:
+        write_text_atomic(path.with_name(SAMPLES_FILE), json.dumps(
+            {"format": SAMPLES_FORMAT, "version": 1, "samples": samples}, indent=1))
+    write_text_atomic(path, calibrated_toml(report, corr))
     return path

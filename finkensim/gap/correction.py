@@ -20,9 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..sensors.correction_table import CorrectionTable
 from .scoring import brier, ensemble_terms
 
-__all__ = ["Correction", "fit_correction", "QUANTILES"]
+__all__ = ["Correction", "fit_correction", "residual_table", "QUANTILES"]
 
 QUANTILES = 19  # quantile levels of the correction's predictive distribution
 MAX_TRAIN_ROWS = 20000
@@ -36,7 +37,8 @@ class Correction:
     features: feature names used (the last is ``model_median``); rows_score, rows_expected: sensor →
     (n,) held-out normalised score and the correction's own expected score; rows_gap: their difference, the
     calibration gap; partial_dependence: sensor →
-    {feature: (grid (G,), median residual (G,) m)}."""
+    {feature: (grid (G,), median residual (G,) m)}; tables: sensor → the residual's quantiles on a grid of the model
+    median (:func:`residual_table`), the form the simulator flies (:mod:`finkensim.sensors.correction_table`)."""
 
     sensor: str
     sensors: list
@@ -46,12 +48,34 @@ class Correction:
     rows_expected: dict = field(default_factory=dict, repr=False)
     rows_gap: dict = field(default_factory=dict, repr=False)
     partial_dependence: dict = field(default_factory=dict, repr=False)
+    tables: dict = field(default_factory=dict, repr=False)
 
 
 def _design(tab, rows, median):
     names = sorted(tab.features)
     X = np.column_stack([tab.features[k][rows] for k in names] + [median])
     return X, names + ["model_median"]
+
+
+#: the exported table's bins: at most this many, each with at least TABLE_MIN_ROWS training readings
+TABLE_BINS = 12
+TABLE_MIN_ROWS = 200
+
+
+def residual_table(median: np.ndarray, residual: np.ndarray, levels: np.ndarray) -> CorrectionTable:
+    """The correction as a table the simulator applies: the empirical quantiles at ``levels`` (Q,) of the training
+    residuals (n,) m in bins of the model median (n,) m (equal-count bins, at most :data:`TABLE_BINS`, each with at
+    least :data:`TABLE_MIN_ROWS` readings; the outer edges widened by 1 mm)."""
+    G = max(1, min(TABLE_BINS, median.size // TABLE_MIN_ROWS))
+    edges = np.unique(np.quantile(median, np.linspace(0.0, 1.0, G + 1)))
+    if edges.size < 2:
+        edges = np.array([edges[0] - 1e-3, edges[0] + 1e-3])
+    edges[0] -= 1e-3
+    edges[-1] += 1e-3
+    g = np.clip(np.searchsorted(edges, median, side="right") - 1, 0, edges.size - 2)
+    q = np.array([np.quantile(residual[g == k], levels) if (g == k).any() else np.quantile(residual, levels)
+                  for k in range(edges.size - 1)])
+    return CorrectionTable(edges, np.asarray(levels, dtype=float), np.maximum.accumulate(q, axis=1))
 
 
 def _fit_sensor(diag, sensor, p, located):
@@ -101,7 +125,7 @@ def _fit_sensor(diag, sensor, p, located):
             continue
         res = partial_dependence(mid, sample, [j], grid_resolution=20, kind="average")
         pd[feat] = (np.asarray(res["grid_values"][0], float), np.asarray(res["average"][0], float))
-    return names, score, expected, pd
+    return names, score, expected, pd, residual_table(med[ok], r, levels)
 
 
 def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | None = None) -> Correction | None:
@@ -125,7 +149,7 @@ def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | No
             why[s] = (f"too few training readings with a value ({int(np.isfinite(diag.tables[s].y[diag.rows_fit[s]]).sum())}"
                       f" < {MIN_TRAIN_ROWS}) to fit a correction")
             continue
-        names, score, expected, pd = fitted
+        names, score, expected, pd, table = fitted
         if out is None:
             out = Correction(sensor=s, sensors=[], features=names, method=METHOD.format(q=QUANTILES))
         out.sensors.append(s)
@@ -133,4 +157,5 @@ def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | No
         out.rows_expected[s] = expected
         out.rows_gap[s] = score - expected
         out.partial_dependence[s] = pd
+        out.tables[s] = table
     return out

@@ -237,7 +237,12 @@ register(Effect(
         "configured walls)",
     initial=lambda b: {"amplitude": b.bulge_amplitude, "reach": b.bulge_reach, "response": b.bulge_response,
                        "shape": b.bulge_shape},
-    expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence")))
+    expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence"),
+    calibrate=lambda v, cfg: {
+        "walls.bending": True, "walls.bulge_amplitude": float(v["amplitude"]), "walls.bulge_reach": float(v["reach"]),
+        "walls.bulge_response": float(v["response"]), "walls.bulge_shape": float(v["shape"]),
+        # the hinge stays as the config flew it (rigid walls: the bulge alone)
+        "walls.model": "hinge+bulge" if cfg.walls.bending and "hinge" in cfg.walls.model else "bulge"}))
 register(Effect(
     "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),
     _crosstalk_geometric,
@@ -309,7 +314,12 @@ register(Effect(
     doc="readings describe the world some time earlier (per sensor, s; negative: later, a clock offset set too "
         "early); searched in whole samples of the log",
     initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
-    expected_features=("range_rate", "speed", "acc_magnitude"), separable=True))
+    expected_features=("range_rate", "speed", "acc_magnitude"), separable=True,
+    # the simulator flies latencies >= 0 (a simulated reading cannot describe a later world): a negative fit (a log
+    # stamped early) flies as 0, and the calibrated file's comment at the key shows the fitted value
+    calibrate=lambda v, cfg: {"sonar.latency": max(0.0, float(v["ultrasonic"])),
+                              "ranging.latency": max(0.0, float(v["ranging"])),
+                              "imu.latency": max(0.0, float(v["imu"]))}))
 register(Effect(
     "ranging_nlos", ("ranging",), (Param("bias", -0.5, 1.0, unit="m"), Param("width", 0.03, 0.35, unit="m")),
     lambda b, v: b.with_ranging(nlos_bias=v["bias"], nlos_width=v["width"]),
@@ -328,7 +338,10 @@ register(Effect(
     (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
     lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
     doc="tracking noise in the logged poses", catch_all=True,
-    calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"]}))
+    # the flight-log writer records simulated poses with it, and a diagnosis of new logs under the calibrated config
+    # takes it instead of the logs' declared noise
+    calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"],
+                              "gap.tracking_sigma_xy": v["sigma_xy"], "gap.tracking_sigma_yaw": v["sigma_yaw"]}))
 register(Effect(
     "imu_bias", ("imu",),
     (Param("acc_x", -1.0, 1.0, unit="m/s^2"), Param("acc_y", -1.0, 1.0, unit="m/s^2"),

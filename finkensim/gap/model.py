@@ -22,14 +22,16 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config
-from ..kernels.rng import STREAM_EFFECT, counter_key, normal
+from ..kernels.rng import STREAM_CORRECTION, STREAM_EFFECT, counter_key, normal, uniform
+from ..sensors.correction_table import correction_quantile
 from ..sensors.imu import ImuModel
+from ..sensors.latency import lag_steps
 from ..sensors.ranging import RangingModel
 from ..kernels.raycast import HIT_NONE
 from ..sensors.sonar_kernels import echo_error, measured_reading
 from ..sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
-__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws"]
+__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +76,9 @@ class ModelParams:
         """The simulator's models of ``cfg`` (the ranging mixture file is read here) and neutral gap knobs."""
         return cls(sonar=SonarModel.from_config(cfg), ranging=RangingModel.from_config(cfg.ranging),
                    imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
-                   wall_gain=1.0 if cfg.walls.bending else 0.0, beam_rays=int(cfg.sonar.beam_rays))
+                   wall_gain=1.0 if cfg.walls.bending and "hinge" in cfg.walls.model else 0.0,
+                   beam_rays=int(cfg.sonar.beam_rays), **_bulge_from_config(cfg.walls),
+                   latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency)
 
     def with_(self, **kw) -> "ModelParams":
         """A copy with the given fields replaced."""
@@ -107,6 +111,13 @@ class ModelParams:
         """(accelerometer m/s²/√s, gyro rad/s/√s) bias random-walk densities of the IMU model."""
         sq = math.sqrt(self.imu.dt)
         return self.imu.acc_walk / sq, self.imu.gyro_walk / sq
+
+
+def _bulge_from_config(walls) -> dict:
+    """The ``bulge_*`` fields of the curtain bulge the simulator flies (``walls.model``; amplitude 0 without)."""
+    on = walls.bending and "bulge" in walls.model
+    return dict(bulge_amplitude=walls.bulge_amplitude if on else 0.0, bulge_reach=walls.bulge_reach,
+                bulge_response=walls.bulge_response, bulge_shape=walls.bulge_shape)
 
 
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
@@ -162,6 +173,13 @@ def sonar_reading_draws(dist, kind, xtalk, flight, tidx, chan, seed, sp, err, ou
         else:
             for m in range(M):
                 out[i, m] = measured_reading(dist[i, m], kind[i, m] != HIT_NONE, xtalk[i, m], key, m, sps, err[i, m])
+        if sp.correction.shape[0] > 0:  # the learned correction the simulator flies (sonar.correction_file)
+            ckey = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_CORRECTION)
+            for m in range(M):
+                if kind[i, m] != HIT_NONE and dist[i, m] < sps.max_range:
+                    ref = sps.range_scale * dist[i, m] + sps.bias
+                    r = ref + correction_quantile(sp.correction, ref, uniform(ckey, m))
+                    out[i, m] = min(sps.max_range, max(sps.min_range, r))
 
 
 @njit(cache=True, parallel=True)
@@ -172,9 +190,3 @@ def gaussian_draws(ideal, flight, tidx, chan, seed, sd, bias, out):
         key = counter_key(seed, flight[i], tidx[i], chan[i], STREAM_EFFECT)
         for m in range(M):
             out[i, m] = ideal[i, m] + bias[i] + sd[i] * normal(key, m)
-
-
-def lag_steps(seconds: float, dt: float) -> int:
-    """A latency of ``seconds`` as whole samples of a log with sample period ``dt`` s (nearest; ties away from 0)."""
-    x = seconds / dt
-    return int(math.copysign(math.floor(abs(x) + 0.5), x))

@@ -45,4 +45,10 @@ def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None
     """
     cfg = Config() if cfg is None else cfg
     diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress, limits=limits)
-    return run_diagnosis(diag, effect_names)
+    report = run_diagnosis(diag, effect_names)
+    if cfg.gap.param_intervals and report.details.added_params:
+        from .intervals import parameter_intervals
+
+        diag.say("  bootstrap intervals of the fitted parameters")
+        report.details.param_intervals = parameter_intervals(diag, report.details.added_params, diag.seed)
+    return report

@@ -60,7 +60,9 @@ class GapDetails:
     (same order), the median of reading − model median in the sensor's unit (m for ultrasonic and ranging);
     at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.effects.at_bound`);
     added_params: effect → its fitted parameters in the final selection (after any joint refit); config: the
-    diagnosed :class:`~finkensim.config.Config` (what :meth:`GapReport.calibrated_config` starts from).
+    diagnosed :class:`~finkensim.config.Config` (what :meth:`GapReport.calibrated_config` starts from);
+    param_intervals: effect → parameter → its bootstrap distribution and interval
+    (:func:`~finkensim.gap.intervals.parameter_intervals`; empty with ``gap.param_intervals = false``).
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -96,6 +98,7 @@ class GapDetails:
     at_bound: dict = field(default_factory=dict)
     added_params: dict = field(default_factory=dict)
     config: object = None
+    param_intervals: dict = field(default_factory=dict)
 
 
 @dataclass

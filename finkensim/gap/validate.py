@@ -237,14 +237,15 @@ def base_config(updates: dict | None = None) -> Config:
 
 
 def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, n_copters: int | None = None,
-             conventions: Conventions | None = None):
+             conventions: Conventions | None = None, flights_from: int = 0):
     """Simulated "real" flights with the case's effect at a random strength, recorded in ``conventions``
     (default :data:`~finkensim.gap.conventions.DEFAULT_CONVENTIONS`; ``n_copters`` overrides its swarm size).
 
     Returns (logs, base config for the diagnosis, truth dict). Poses carry the conventions' tracking noise
     (declared in meta) unless the case is ``pose_noise``, whose noise is larger than declared. For
     ``wall_bulge`` the simulated walls hang from a hinge at least 0.4 m above the flight (so they bend at any
-    altitude) while the diagnosed model keeps its own, possibly rigid, walls.
+    altitude) while the diagnosed model keeps its own, possibly rigid, walls. ``flights_from``: the index of the
+    first flight (other flights of the same truth: ``gap-validate --calibrate``).
     """
     conv = conventions or DEFAULT_CONVENTIONS
     if n_copters is not None:
@@ -258,7 +259,7 @@ def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, 
     diag_cfg = base_config({"copters.n": conv.n_copters, **conv.diag_updates()})
     logs = []
     for i in range(n_flights):
-        log, traj, _ = simulate_flight(sim_cfg, duration=duration, seed=int(seed * 1000 + i), ideal=True)
+        log, traj, _ = simulate_flight(sim_cfg, duration=duration, seed=int(seed * 1000 + flights_from + i), ideal=True)
         true_pose = log.pose.copy()
         sx, sy = conv.tracking_sigma_xy, conv.tracking_sigma_yaw
         for pp in (post if isinstance(post, list) else [post]):
@@ -389,9 +390,10 @@ def get_case(name: str) -> Case:
 
 
 def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, progress=None,
-             conventions: Conventions | str | None = None) -> dict:
+             conventions: Conventions | str | None = None, keep: dict | None = None) -> dict:
     """Generate and diagnose one trial; returns a result row. conventions: a :class:`Conventions`, "random"
-    (drawn from the axis, keyed by the case name and the seed) or None (the defaults)."""
+    (drawn from the axis, keyed by the case name and the seed) or None (the defaults); ``keep`` (a dict, filled in):
+    the report and the conventions used."""
     case = get_case(name)
     if conventions == "random":  # its own point of the axis per (case, seed)
         conventions = draw_conventions(np.random.default_rng([seed, zlib.crc32(name.encode())]))
@@ -400,6 +402,8 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, p
                                 conventions=conventions)
     names = [f"{name}-{seed}-{i}.npz" for i in range(len(logs))]
     report = run_diagnosis(Diagnosis(logs, names, cfg, progress=progress))
+    if keep is not None:
+        keep.update(report=report, conventions=conventions)
     v = report["verdict"]
     named = v["effect"]
     if case.effects:

@@ -59,9 +59,15 @@ def _worker_init(parent_pid: int) -> None:
 
 
 def _one(job: tuple) -> dict:
-    case, seed, flights, duration, conventions = job
-    row = run_case(case, seed, n_flights=flights, duration=duration,
-                   conventions="random" if conventions == "random" else None)
+    case, seed, flights, duration, conventions, *calibrate = job
+    if calibrate and calibrate[0]:  # gap-validate --calibrate
+        from .validate_calibrate import run_calibrated_case
+
+        row = run_calibrated_case(case, seed, n_flights=flights, duration=duration,
+                                  conventions="random" if conventions == "random" else None)
+    else:
+        row = run_case(case, seed, n_flights=flights, duration=duration,
+                       conventions="random" if conventions == "random" else None)
     row.update(flights=flights, duration=duration, convention_mode=conventions)
     return row
 
@@ -105,16 +111,18 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
 
 def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration: float, conventions: str,
                out: Path, executor: str = "serial", workers: int = 2, scheduler: str | None = None,
-               progress: Callable | None = None) -> list[dict]:
+               progress: Callable | None = None, calibrate: bool = False) -> list[dict]:
     """Every (case, trial) row, running those not already in ``out/trials.jsonl``; trial-major order so an
-    interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``."""
+    interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``;
+    calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validate_calibrate`; keep
+    its rows in their own ``out``)."""
     log_path = Path(out) / "trials.jsonl"
     done = load_done(log_path)
     keys = [trial_key(c, seed + t, flights, duration, conventions) for t in range(trials) for c in cases]
     todo = [k for k in keys if k not in done]
     bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
     try:
-        for row in _completed(todo, executor, workers, scheduler):
+        for row in _completed([k + (True,) for k in todo] if calibrate else todo, executor, workers, scheduler):
             done[trial_key(row["case"], row["seed"], flights, duration, conventions)] = row
             # rewritten whole after every trial (atomically, like every output): never a torn line
             write_text_atomic(log_path, "".join(json.dumps(r, default=float) + "\n" for r in done.values()))

@@ -30,6 +30,7 @@ from ..kernels.cellgrid import build_env, query_env
 from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
 from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
 from ..kernels.trig import sin_fast
+from .correction_table import correct_readings_env
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 
@@ -400,6 +401,9 @@ def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, 
         for k in range(n_sonars):
             path = crosstalk_path(n, k, sonar_buf, slot, sps, cand, n_cand, spread, xt_buf[0]) if geometric else np.inf
             out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
+    if sp.correction.shape[0] > 0:  # the learned correction (sonar.correction_file)
+        correct_readings_env(out, dist, kind, sp.correction, sps.range_scale, sps.bias, sps.min_range, sps.max_range,
+                             seed, env_id, step)
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin

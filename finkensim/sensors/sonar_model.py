@@ -106,6 +106,7 @@ class SonarModel(NamedTuple):
     crosstalk_hear_probability: float = 1.0
     update_hz: float = 0.0
     update_phase: float = 0.0
+    correction: np.ndarray = np.zeros((0, 0))
 
     @classmethod
     def from_config(cls, cfg: Config | SonarConfig, radius: float | None = None,
@@ -150,6 +151,7 @@ class SonarModel(NamedTuple):
             crosstalk_hear_probability=float(sc.crosstalk_hear_probability),
             update_hz=float(sc.update_hz),
             update_phase=float(sc.update_phase),
+            correction=_correction(sc),
         ).with_beam((h if sc.beam_half_angle_deg < 0.0 else math.radians(sc.beam_half_angle_deg))
                     if sc.beam == "cone" else 0.0, sc.beam_rays)
 
@@ -171,9 +173,18 @@ class SonarModel(NamedTuple):
         return self._replace(ray_angles=np.ascontiguousarray(rays, dtype=np.float64))
 
 
+def _correction(sc) -> np.ndarray:
+    """The packed correction table of ``sonar.correction_file`` (:mod:`finkensim.sensors.correction_table`)."""
+    if not sc.correction_file:
+        return np.zeros((0, 0))
+    from .correction_table import read_correction
+
+    return read_correction(sc.correction_file, "ultrasonic", key="sonar.correction_file").packed()
+
+
 #: The array fields of :class:`SonarModel`, at these positions (``sonar_scalars`` slices around them).
-_ARRAY_FIELDS = ("mount_yaw", "ray_angles")
-if tuple(SonarModel._fields.index(f) for f in _ARRAY_FIELDS) != (0, 15):
+_ARRAY_FIELDS = ("mount_yaw", "ray_angles", "correction")
+if tuple(SonarModel._fields.index(f) for f in _ARRAY_FIELDS) != (0, 15, len(SonarModel._fields) - 1):
     raise ImportError("SonarModel's array fields moved: update sonar_scalars")
 
 SonarScalars = NamedTuple("SonarScalars", [(f, SonarModel.__annotations__[f]) for f in SonarModel._fields
@@ -189,5 +200,5 @@ environment-step of 10 copters without them).
 
 @njit(cache=True, inline="always")
 def sonar_scalars(sp):
-    """The :class:`SonarScalars` of a :class:`SonarModel` (fields 1–14 and 16 onwards)."""
-    return SonarScalars(*(sp[1:15] + sp[16:]))
+    """The :class:`SonarScalars` of a :class:`SonarModel` (fields 1–14 and 16 up to the last)."""
+    return SonarScalars(*(sp[1:15] + sp[16:-1]))

@@ -94,6 +94,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ..arena import shift_plates_env
 from ..config import ConfigError
 from ..kernels.cellgrid import NO_GRID, no_grid_buffers
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
@@ -131,8 +132,9 @@ _down_env_fn = twin(down_env)
 
 
 @njit(cache=True, parallel=True)
-def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hit, out):
-    """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] (so T×B trajectories flatten);
+def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hit, out, bulge):
+    """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] (so T×B trajectories flatten), the plates
+    moved by bulge (B, S) m along their normals (:func:`~finkensim.arena.shift_plates_env`; (B, 0): not);
     g: :class:`WallGeometry`. Ideal values into dist/kind/hit; with ``measure`` also the readings into out.
     Every copter is tested against every ray (no cell grid: the reference the engine's grid is compared with)."""
     B, N, _ = pos.shape
@@ -144,6 +146,8 @@ def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hi
         off = NO_GRID
         no = no_grid_buffers()
         displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
+        if bulge.shape[1] > 0:
+            shift_plates_env(bulge[b], g.normal, pa, pb)
         if measure:
             _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b],
                                (sonar_buf, dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64)), out[b], off, no)
@@ -222,16 +226,17 @@ def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
     none = np.zeros(B, dtype=np.int64)
-    _batch(pos, yaw, theta, g, sp, 0, none, none, False, dist, kind, hit, np.empty((B, N, S_)))
+    _batch(pos, yaw, theta, g, sp, 0, none, none, False, dist, kind, hit, np.empty((B, N, S_)), np.zeros((B, 0)))
     return dist, kind, hit
 
 
 def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, env_ids, step: int,
-                        return_ideal: bool = False):
+                        return_ideal: bool = False, bulge=None):
     """Measured horizontal sonar readings of B environments at world step ``step``.
 
     Arguments as :func:`ideal_ultrasonic`, plus seed, env_ids (B,) global environment indices and step
-    (``WorldState.step``), which key the random numbers.
+    (``WorldState.step``), which key the random numbers; ``bulge`` (B, S) m: the plates' curtain bulge
+    (``WorldState.bulge``, walls.model), None for none.
 
     Returns:
         readings (B, N, 4) m in [min_range, max_range] (front, left, back, right); with
@@ -248,7 +253,8 @@ def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, e
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
     out = np.empty((B, N, S_))
-    _batch(pos, yaw, theta, g, sp, int(seed), env_ids, steps, True, dist, kind, hit, out)
+    shift = np.zeros((B, 0)) if bulge is None else np.ascontiguousarray(bulge, dtype=np.float64).reshape(B, -1)
+    _batch(pos, yaw, theta, g, sp, int(seed), env_ids, steps, True, dist, kind, hit, out, shift)
     if return_ideal:
         return out, dist, kind, hit
     return out
@@ -284,9 +290,9 @@ def fire_slots(params: SonarModel, seed: int, env_ids, step: int, n_copters: int
 
 def ultrasonic_from_state(state, arena, params: SonarModel, return_ideal: bool = False):
     """:func:`ultrasonic_readings` of a :class:`~finkensim.world.WorldState` (its pos, yaw, theta, seed,
-    env_ids and step)."""
+    env_ids, step and bulge)."""
     return ultrasonic_readings(state.pos, state.yaw, state.theta, arena, params, state.seed, state.env_ids,
-                               state.step, return_ideal=return_ideal)
+                               state.step, return_ideal=return_ideal, bulge=state.bulge)
 
 
 def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_ids, step0: int,
@@ -318,7 +324,7 @@ def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_i
     kind = np.empty((T * B, N, S_), dtype=np.int64)
     hit = np.empty((T * B, N, S_, 2))
     out = np.empty((T * B, N, S_))
-    _batch(pos, yaw, th, g, sp, int(seed), ids, steps, True, dist, kind, hit, out)
+    _batch(pos, yaw, th, g, sp, int(seed), ids, steps, True, dist, kind, hit, out, np.zeros((T * B, 0)))
     out = out.reshape(T, B, N, S_)
     if return_ideal:
         return (out, dist.reshape(T, B, N, S_), kind.reshape(T, B, N, S_),

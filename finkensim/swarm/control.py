@@ -146,10 +146,12 @@ class Controlled:
             raise ValueError(f"out has shapes {[a.shape for a in out]}: expected C-contiguous float64 arrays of shapes "
                              f"{list(want)}, as Controlled.readings({B}, {N}) makes them")
         run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, float(sim.dt), sim.enabled["sonar"],
-                      False, sim.enabled["ranging"], sim.enabled["imu"], NO_RANGING_ROWS)
+                      False, sim.enabled["ranging"], sim.enabled["imu"], NO_RANGING_ROWS, sim.lags)
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
         if cmd.shape != (B, N, 2):
             raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")
+        if sim.lags.any():  # the latency ring buffer must be the one this sim's init made
+            sim._check_delay(state.behaviour.sensor_delay, B, N)
         control_step(state.for_kernels(), run, cmd, obs, sim.models(), self._grid_buffers(B, N))
         return obs
 

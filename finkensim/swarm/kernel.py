@@ -29,6 +29,7 @@ from numba import njit
 from ..behaviours.attraction import body_to_world_env
 from ..behaviours.registry import BehaviourInput
 from ..behaviours.wall_check import WALL_CHECK_NONE, dead_reckon_env, wall_check_env
+from ..sensors.latency import LAG_RANGING
 from ..kernels.cellgrid import env_grid
 from ..kernels.threads import run_ranges
 from ..kernels.twin import INTERNAL, twin
@@ -126,7 +127,9 @@ def _swarm_env(span, state, run, rec, models, params, grid):
     wp = models.wall_check
     seed = run.seed
     # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
-    near_on = run.do_ranging and grid.on and wp.ranging_max_range == models.ranging.max_range
+    # (not with a ranging latency: the delayed rows are not those of the current positions' grid)
+    near_on = run.do_ranging and grid.on and wp.ranging_max_range == models.ranging.max_range \
+        and run.lags[LAG_RANGING] == 0
     # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
     # ranging row need not be written at every step
     fill = rec.ranging.shape[0] > 0 or not near_on

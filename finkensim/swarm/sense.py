@@ -21,14 +21,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from ..arena import shift_plates_env
 from ..kernels.twin import INTERNAL, twin
 from ..sensors.imu import imu_env
+from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_columns, delay_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
 
 __all__ = ["SenseBuffers", "sense_buffers", "sense_env", "plates_twin", "sonar_twin", "hold_twin", "down_twin",
-           "ranging_twin", "imu_twin"]
+           "ranging_twin", "imu_twin", "shift_twin", "delay_twin"]
 
 plates_twin = twin(displaced_plates_env)
 sonar_twin = twin(ultrasonic_env)
@@ -36,6 +38,8 @@ hold_twin = twin(hold_env)
 down_twin = twin(down_env)
 ranging_twin = twin(ranging_grid_env)
 imu_twin = twin(imu_env)
+shift_twin = twin(shift_plates_env)
+delay_twin = twin(delay_env)
 
 
 class SenseBuffers(NamedTuple):
@@ -79,9 +83,11 @@ def sense_buffers(sonar, ranging, imu_acc, imu_gyro, models, fill_ranging):
 @njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.twin)
 def sense_env(b, k, state, run, models, buf, grid, grid_b):
     """The sensors of environment b at step k → ``buf`` (:class:`SenseBuffers`), each when ``run`` enables it:
-    sonars on the plates displaced by their current angles (then held between measurements when
-    ``sonar.update_hz`` > 0: ``memory.sonar_held``), the down sonar, ranging to every copter and beacon, the IMU
-    (its bias ``state.imu_bias`` advances). state: :class:`~finkensim.swarm.state.SwarmState` (held readings in
+    sonars on the plates displaced by their current angles and by the curtain bulge where the walls have one
+    (``walls.model``; then held between measurements when ``sonar.update_hz`` > 0: ``memory.sonar_held``), the down
+    sonar, ranging to every copter and beacon, the IMU (its bias ``state.imu_bias`` advances); a sensor with a
+    latency (``run.lags``) then shows the reading of that many steps earlier (the ring buffer
+    ``state.behaviour.sensor_delay``, :mod:`finkensim.sensors.latency`). state: :class:`~finkensim.swarm.state.SwarmState` (held readings in
     ``state.behaviour.sonar_held``); run: :class:`~finkensim.swarm.state.RunSpec`; models:
     :class:`~finkensim.swarm.state.Models`; grid, grid_b: the batch's cell grid and environment b's buffers."""
     world = state.world
@@ -91,17 +97,32 @@ def sense_env(b, k, state, run, models, buf, grid, grid_b):
     yaw = world.yaw[b]
     geo = models.geometry
     sp = models.sonar
+    lags = run.lags
+    delay = state.behaviour.sensor_delay[b]
+    if delay.shape[0] > 0:  # a sensor has a latency: its columns in the ring buffer
+        cols = delay_columns(lags, pos.shape[0] + models.beacons.shape[0])[0]
+    else:
+        cols = np.full(3, -1, dtype=np.int64)
     if run.do_sonar:
         plates_twin(world.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, buf.plate_a, buf.plate_b)
+        if world.bulge.shape[1] > 0:  # the curtain bulge (walls.model) on top of the hinge
+            shift_twin(world.bulge[b], geo.normal, buf.plate_a, buf.plate_b)
         sonar_twin(pos, yaw, buf.plate_a, buf.plate_b, geo.width, geo.length, sp, seed, env, k,
                    (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, grid_b)
         if sp.update_hz > 0.0:
             hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
+        if lags[LAG_SONAR] > 0:
+            delay_twin(buf.sonar, delay, cols[LAG_SONAR], k, lags[LAG_SONAR])
     if run.do_down:
         down_twin(buf.altitude, sp, seed, env, k, buf.sonar_down)
     if run.do_ranging:
         ranging_twin(pos, yaw, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b,
                      buf.fill_ranging)
+        if lags[LAG_RANGING] > 0:
+            delay_twin(buf.ranging, delay, cols[LAG_RANGING], k, lags[LAG_RANGING])
     if run.do_imu:
         imu_twin(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
                  buf.imu_gyro)
+        if lags[LAG_IMU] > 0:
+            delay_twin(buf.imu_acc, delay, cols[LAG_IMU], k, lags[LAG_IMU])
+            delay_twin(buf.imu_gyro.reshape((buf.imu_gyro.shape[0], 1)), delay, cols[LAG_IMU] + 2, k, lags[LAG_IMU])

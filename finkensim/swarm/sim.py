@@ -14,6 +14,7 @@ from ..behaviours.wall_check import WALL_CHECK_NONE, WALL_CHECK_SEQUENCE, Behavi
     dead_reckon, wall_check
 from ..config import Config, ConfigError, load_config
 from ..sensors.imu import ImuModel, imu_step
+from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_batch, delay_buffer, sensor_lags
 from ..sensors.ranging import RangingModel, ranging_readings
 from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic_readings
@@ -153,6 +154,9 @@ class SwarmSim:
             self.enabled = dict.fromkeys(self.enabled, False)
         _require_sensors(self.behaviour, self.wall_check.mode if sensors else WALL_CHECK_NONE, self.enabled,
                          c.behaviour.wall_check)
+        #: sonar, ranging, IMU latency in steps (:mod:`finkensim.sensors.latency`; 0 for a sensor that is off)
+        self.lags = sensor_lags(*(getattr(c, s).latency if self.enabled[s] else 0.0 for s in ("sonar", "ranging", "imu")),
+                                self.dt)
         self._work = threading.local()  # per thread: the compiled rollout's ranging rows, kept between calls
 
     def __getstate__(self):
@@ -217,8 +221,9 @@ class SwarmSim:
         if memory is None:
             memory = self.memory_factory(B, N) if self.memory_factory is not None else {}
         width = self.behaviour.memory if self.behaviour is not None else 0
-        return SwarmState(world=ws, imu_bias=np.zeros((B, N, 3)),
-                          behaviour=BehaviourState.zeros(B, N, N_SONARS, memory=width), memory=memory)
+        behaviour = BehaviourState.zeros(B, N, N_SONARS, memory=width)._replace(
+            sensor_delay=delay_buffer(self.lags, B, N, N + self.beacons.shape[0]))
+        return SwarmState(world=ws, imu_bias=np.zeros((B, N, 3)), behaviour=behaviour, memory=memory)
 
     def models(self) -> Models:
         """Every model the compiled engine reads, as one record.
@@ -262,7 +267,7 @@ class SwarmSim:
         sonar = ideal = hit = None
         if on["sonar"]:
             sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
-                                                       env_ids, k, return_ideal=True)
+                                                       env_ids, k, return_ideal=True, bulge=ws.bulge)
         down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
         rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging, yaw=ws.yaw) if on["ranging"] else None
         bias = state.imu_bias.copy()
@@ -270,9 +275,17 @@ class SwarmSim:
         if on["sonar"] and self.sonar.update_hz > 0.0:
             for b in range(B):
                 hold_env(sonar[b], mem.sonar_held[b], k, self.dt, self.sonar.update_hz, self.sonar.update_phase)
+        R = N + self.beacons.shape[0]
+        self._check_delay(mem.sensor_delay, B, N)
+        if on["sonar"]:
+            delay_batch(sonar, mem.sensor_delay, self.lags, LAG_SONAR, k, R)
+        if on["ranging"]:
+            delay_batch(rng, mem.sensor_delay, self.lags, LAG_RANGING, k, R)
         imu_acc = imu_gyro = None
         if on["imu"]:
             imu_acc, imu_gyro = imu_step(ws.acc, ws.yaw, ws.yaw_rate, bias, self.imu, seed, env_ids, k)
+            delay_batch(imu_acc, mem.sensor_delay, self.lags, LAG_IMU, k, R)
+            delay_batch(imu_gyro, mem.sensor_delay, self.lags, LAG_IMU, k, R, offset=2)
             dead_reckon(imu_acc, imu_gyro, mem, self.wall_check)
         if on["sonar"]:
             rng_in = rng if rng is not None else np.zeros((B, N, N + self.beacons.shape[0]))
@@ -282,6 +295,14 @@ class SwarmSim:
         readings = SensorReadings(sonar=sonar, sonar_down=down, ranging=rng, imu_acc=imu_acc, imu_gyro=imu_gyro,
                                   wall=wall, step=k, dt=self.dt, seed=seed, env_ids=env_ids.copy())
         return readings, bias, mem, ideal, hit
+
+    def _check_delay(self, buf: np.ndarray, B: int, N: int) -> None:
+        """Raise ConfigError unless ``buf`` is the latency ring buffer this sim's :meth:`init` makes for B × N."""
+        want = delay_buffer(self.lags, 1, N, N + self.beacons.shape[0]).shape[1:]
+        if buf.shape != (B,) + want:
+            raise ConfigError(f"state.behaviour.sensor_delay has shape {buf.shape}: expected {(B,) + want}, the "
+                              "latency buffer of this SwarmSim's init (sonar/ranging/imu.latency = "
+                              f"{tuple(int(x) for x in self.lags)} steps)")
 
     def commands(self, state: SwarmState, readings: SensorReadings) -> tuple[np.ndarray, np.ndarray]:
         """The behaviour's commands for ``state`` given its readings.
@@ -433,7 +454,8 @@ class SwarmSim:
             w = new.world
             run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, float(self.dt),
                           self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"],
-                          self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS)
+                          self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS, self.lags)
+            self._check_delay(new.behaviour.sensor_delay, B, N)
             swarm_rollout(new.for_kernels(), run, kernel_record(rec), self.models(),
                           engine_grid(self.world.grid, w.n_envs, w.n_copters), self.behaviour, self.params)
             new = new._replace(world=w._replace(step=w.step + T))

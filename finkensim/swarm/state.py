@@ -146,7 +146,8 @@ class RunSpec(NamedTuple):
     """What a compiled rollout runs: seed, env_ids (B,) int64 global environment indices, step0 (the
     state's step), n_steps, dt s, which sensors run (sonar, down, ranging, imu), and
     ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
-    reads is written in it first; (0, 0, 0) where the kernel takes no rows from it)."""
+    reads is written in it first; (0, 0, 0) where the kernel takes no rows from it); lags (3,) int64: sonar, ranging
+    and IMU latency in steps (:func:`~finkensim.sensors.latency.sensor_lags`; zeros: none)."""
 
     seed: int
     env_ids: np.ndarray
@@ -158,6 +159,7 @@ class RunSpec(NamedTuple):
     do_ranging: bool
     do_imu: bool
     ranging_rows: np.ndarray
+    lags: np.ndarray = np.zeros(3, dtype=np.int64)
 
 
 def kernel_record(arrays: dict) -> SwarmRecord:

@@ -18,6 +18,7 @@ from ..metrics import METRICS, check_metric_names
 from ..scenario import load_scenario
 from .checks import Parser, SweepError, config_value, is_duration
 from .keys import DEFAULT_REPLICATES, Run, content_hash, format_params, format_value, seed_for
+from .calibration import sample_for
 from .sweepfile import read_sweep_toml, sweep_arguments
 from .tables import RESULT_COLUMNS
 
@@ -60,8 +61,10 @@ class Sweep:
                  seed: int = 0, duration: float | None = None, metrics: Iterable[str] | None = None,
                  combinations: Sequence[Mapping[str, Any]] | None = None, design: str | None = None,
                  source: str = "sweep", text: str | None = None, description: str = "",
-                 variants: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None):
+                 variants: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None,
+                 calibration_samples: Sequence[Mapping[str, Any]] | None = None):
         p = Parser(source)
+        self.calibration_samples = [dict(s) for s in calibration_samples] if calibration_samples else None
         self.source, self.text, self.description = source, text, description
         self.replicates = p.integer("replicates", replicates, 1)
         self.seed = p.integer("seed", seed, 0, 2**63 - 1)
@@ -253,12 +256,26 @@ class Sweep:
         return [Run(k * self.replicates + r, k, r, self.run_seed(k, r), self.combinations[k])
                 for k in range(self.n_combinations) for r in range(self.replicates)]
 
+    def run_config(self, run: Run) -> Config:
+        """The config of ``run``: its combination's, under its calibration draw with ``calibration = "sample"``
+        (:mod:`finkensim.sweep.calibration`; keys the design sets stay the design's)."""
+        cfg = self.configs[run.combination]
+        if not self.calibration_samples:
+            return cfg
+        swept = set(self.parameters) | {k for levels in self.variants.values() for lv in levels.values() for k in lv}
+        try:
+            return cfg.replace(sample_for(self.calibration_samples, self.seed, run.combination, run.replicate, swept))
+        except ConfigError as exc:
+            raise SweepError(f"{self.source}: calibration sample of run {run.run_id}: {exc}") from None
+
     def fingerprint(self) -> str:
         """Hash of everything that decides the results (configs, replicates, seed, metrics)."""
         content = {"configs": [c.to_dict() for c in self.configs], "parameters": list(self.parameters),
                    "replicates": self.replicates, "seed": self.seed, "metrics": list(self.metrics)}
         if self.variants:  # level names are results columns too (unchanged hash for sweeps without variants)
             content["levels"] = [{f: c[f] for f in self.variants} for c in self.combinations]
+        if self.calibration_samples:  # unchanged hash for sweeps at the fitted values
+            content["calibration_samples"] = self.calibration_samples
         return content_hash(content)
 
     def __repr__(self):

@@ -92,7 +92,10 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
                 done = read_parts(out_dir / "parts", sweep, schema)
         todo = [r for r in runs if r.run_id not in done]
         cfg_dicts = [c.to_dict() for c in sweep.configs]
-        tasks = [{"run_id": r.run_id, "config": cfg_dicts[r.combination], "seed": r.seed,
+        if sweep.calibration_samples:  # calibration = "sample": each run under its own draw
+            cfg_dicts = {r.run_id: sweep.run_config(r).to_dict() for r in todo}
+        tasks = [{"run_id": r.run_id, "config": cfg_dicts[r.run_id if sweep.calibration_samples else r.combination],
+                  "seed": r.seed,
                   "metrics": list(sweep.metrics), "runner": runner, "single_thread": executor != "serial"}
                  for r in todo]
         if executor == "serial":

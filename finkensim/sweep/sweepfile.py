@@ -64,6 +64,7 @@ from ..usertext import loads_toml, suggest
 from ..metrics import METRICS
 from ..scenario import load_scenario
 from .checks import Parser, SweepError, field_kind, is_duration, is_number
+from .calibration import samples_for_base
 from .keys import DEFAULT_REPLICATES, SEED_TAG_DESIGN
 
 if sys.version_info >= (3, 11):
@@ -71,7 +72,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-TOP_KEYS = ("description", "replicates", "duration", "seed", "metrics", "base", "variants", "grid", "random")
+TOP_KEYS = ("description", "replicates", "duration", "seed", "metrics", "base", "variants", "grid", "random",
+            "calibration")
 SPEC_KEYS = ("low", "high", "log", "choices")  # keys of a [random] parameter spec
 
 
@@ -151,9 +153,13 @@ def sweep_arguments(data: Mapping[str, Any], base_dir: str | Path | None = None,
     elif "random" in data:
         combinations = random_design(p, data["random"], data.get("seed", 0))
         design = "random"
+    try:
+        samples = samples_for_base(data.get("calibration", "fixed"), data.get("base", {}), base_dir)
+    except SweepError as exc:
+        raise p.error(str(exc)) from None
     return dict(base=base, grid=grid, replicates=data.get("replicates", DEFAULT_REPLICATES), seed=data.get("seed", 0),
                 duration=duration, metrics=metrics, combinations=combinations, design=design, source=source,
-                text=text, description=description, variants=variants)
+                text=text, description=description, variants=variants, calibration_samples=samples)
 
 def base_from_table(p: Parser, table, base_dir: Path) -> Config:
     """The base config of the ``[base]`` table: its ``config`` scenario file (relative to ``base_dir``) or the
