@@ -1,12 +1,14 @@
 """Public checkers of plug-ins, in the style of ``gymnasium.utils.env_checker.check_env`` and scikit-learn's
-``check_estimator``: :func:`check_behaviour` for a behaviour (:mod:`finkensim.behaviours.registry`) and
-:func:`check_task` for an RL reward task (:mod:`finkensim.envs.tasks`). Each raises :class:`PluginError` naming
+``check_estimator``: :func:`check_behaviour` for a behaviour (:mod:`finkensim.behaviours.registry`),
+:func:`check_task` for an RL reward task (:mod:`finkensim.envs.tasks`) and :func:`check_effect` for an effect of the
+gap diagnosis (:mod:`finkensim.gap.effects`). Each raises :class:`PluginError` naming
 what failed, the value and what was expected, and returns None when the plug-in passes. The tests run every
 registered plug-in through them; run them on your own before registering it::
 
     from finkensim.testing import check_behaviour, check_task
     check_behaviour(my_behaviour)          # a Behaviour
     check_task(MyTask())                   # an object with reset(ctx, pos) and reward(ctx, world)
+    check_effect(my_effect)                # a finkensim.gap.effects.Effect
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from .config import Config
 from .default_scenario import load_scenario
 from .kernels.twin import python_function
 
-__all__ = ["PluginError", "check_behaviour", "check_task", "random_inputs"]
+__all__ = ["PluginError", "check_behaviour", "check_effect", "check_task", "random_inputs"]
 
 
 class PluginError(AssertionError):
@@ -224,3 +226,92 @@ def check_task(task, cfg: Config | None = None, seed: int = 0, n_envs: int = 3) 
     if not np.array_equal(*runs):
         raise PluginError(f"{name}: two runs from the same seed gave rewards {runs[0].tolist()} and "
                           f"{runs[1].tolist()} (expected deterministic rewards)")
+
+
+#: the sensors an effect may name (the gap diagnosis's sensor names)
+EFFECT_SENSORS = ("ultrasonic", "ranging", "imu")
+
+
+def _effect_values(effect, fraction: float) -> dict:
+    """Each parameter of ``effect`` at ``fraction`` of its range (integers rounded)."""
+    return {p.name: (round(p.lo + fraction * (p.hi - p.lo)) if p.integer else p.lo + fraction * (p.hi - p.lo))
+            for p in effect.params}
+
+
+def _keys(model) -> dict:
+    return {sensor: model.sensor_key(sensor) for sensor in EFFECT_SENSORS}
+
+
+def check_effect(effect, cfg: Config | None = None) -> None:
+    """Check an effect of the gap diagnosis against its contract (:class:`~finkensim.gap.effects.Effect`).
+
+    Checked: a name, known sensors and parameters with finite bounds lo < hi; the starting values lie within the
+    bounds (or at the neutral 0); at the starting values the model is the base model (neutral parameters change
+    nothing); at the bounds and inside them ``apply`` returns a :class:`~finkensim.gap.model.ModelParams`, changes no
+    sensor the effect does not name, leaves the base model as it was and gives the same model twice (pure); with a
+    ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor.
+
+    Parameters
+    ----------
+    effect : Effect
+        The effect (registered or not).
+    cfg : Config, optional
+        The configuration whose model is the base (default: the default scenario's).
+
+    Raises
+    ------
+    PluginError
+        Naming the check that failed, the value and what was expected.
+    """
+    from .gap.effects import Effect
+    from .gap.model import ModelParams
+
+    if not isinstance(effect, Effect):
+        raise PluginError(f"check_effect({effect!r}): expected a finkensim.gap.effects.Effect")
+    name = f"effect {effect.name!r}"
+    if not isinstance(effect.name, str) or not effect.name:
+        _fail(name, "expected a non-empty name")
+    unknown = [s for s in effect.sensors if s not in EFFECT_SENSORS]
+    if not effect.sensors or unknown:
+        _fail(name, f"sensors = {effect.sensors!r}: expected one or more of {EFFECT_SENSORS}")
+    for prm in effect.params:
+        if not (np.isfinite(prm.lo) and np.isfinite(prm.hi) and prm.lo < prm.hi):
+            _fail(name, f"parameter {prm.name!r} has bounds [{prm.lo}, {prm.hi}]: expected finite lo < hi")
+    cfg = load_scenario() if cfg is None else cfg
+    base = ModelParams.from_config(cfg)
+    before = _keys(base)
+    start = effect.start(base)
+    for prm in effect.params:
+        v = start.get(prm.name)
+        if v is None or not (prm.lo <= v <= prm.hi or v == 0.0):
+            _fail(name, f"start value of {prm.name!r} is {v!r}: expected a value in [{prm.lo}, {prm.hi}] (or 0)")
+    neutral = _keys(effect.apply(base, start))
+    for sensor in EFFECT_SENSORS:
+        if neutral[sensor] != before[sensor]:
+            _fail(name, f"at its start values {start} the {sensor} model differs from the base model: expected "
+                        "neutral start values to change nothing")
+    for fraction in (0.0, 0.3, 0.75, 1.0):
+        values = _effect_values(effect, fraction)
+        try:
+            model = effect.apply(base, values)
+        except Exception as e:  # noqa: BLE001 - any failure of a user's apply is the contract broken
+            _fail(name, f"apply at {values} raised {type(e).__name__}: {e}")
+        if not isinstance(model, ModelParams):
+            _fail(name, f"apply at {values} returned {type(model).__name__}: expected a ModelParams")
+        if _keys(base) != before:
+            _fail(name, f"apply at {values} changed the base model in place: expected a pure function")
+        got = _keys(model)
+        for sensor in EFFECT_SENSORS:
+            if sensor not in effect.sensors and got[sensor] != before[sensor]:
+                _fail(name, f"apply at {values} changed the {sensor} model, which the effect does not name "
+                            f"(sensors = {effect.sensors})")
+        if _keys(effect.apply(base, values)) != got:
+            _fail(name, f"apply at {values} gave two different models: expected a pure function")
+    if effect.calibrate is not None:
+        values = _effect_values(effect, 0.75)
+        want = effect.apply(base, values)
+        flown = ModelParams.from_config(cfg.replace(effect.calibrate(values, cfg)))
+        for sensor in effect.sensors:
+            if flown.sensor_key(sensor) != want.sensor_key(sensor):
+                _fail(name, f"the config calibrate({values}) writes flies a different {sensor} model than apply "
+                            "gives: expected the simulator to fly the fitted effect")

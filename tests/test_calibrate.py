@@ -168,3 +168,21 @@ def test_calibrated_table_counts_trials_without_a_gap():
     md = calibrated_table(rows)
     assert "| sonar_bias | 4 | 75 % |" in md and "| 15 % | 0/4 |" in md
     assert "| foreign | 1 | 0 % |" in md and "| 40 % | 1/1 |" in md and "other" not in md
+
+
+def test_a_bulge_refitted_with_the_hinge_law_is_not_flown_as_if_it_were_the_catalogue_law():
+    """The parsimony step may fit wall_bulge with a hinge-law weight the simulator's bulge cannot fly yet: the
+    calibration must say so (flown=False) instead of flying the catalogue law silently."""
+    from types import SimpleNamespace
+
+    from finkensim.gap.calibrate import calibration
+
+    bulge = {"amplitude": 0.1, "reach": 0.4, "response": 0.0, "shape": 2.0}
+
+    def report(values):
+        details = SimpleNamespace(config=load_config(), added_params={"wall_bulge": values}, param_intervals={})
+        return SimpleNamespace(details=details, effects=[{"name": "wall_bulge", "shrink_heldout": 0.5}])
+
+    assert [s.flown for s in calibration(report(bulge))] == [True]
+    assert [s.flown for s in calibration(report({**bulge, "hinge": 0.0}))] == [True]
+    assert [s.flown for s in calibration(report({**bulge, "hinge": 0.4}))] == [False]
