@@ -22,7 +22,7 @@ from typing import Mapping
 
 from .config import Config, ConfigError
 
-__all__ = ["MEMORY_ENV", "MemoryBudgetError", "available_bytes", "format_bytes", "flight_arrays",
+__all__ = ["MEMORY_ENV", "MemoryBudgetError", "available_bytes", "format_bytes", "flight_arrays", "latency_arrays",
            "episode_arrays", "log_arrays", "sweep_objects", "gap_arrays", "check_memory", "flight_advice"]
 
 MEMORY_ENV = "FINKENSIM_MEMORY_AVAILABLE"
@@ -98,15 +98,30 @@ def flight_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1, i
         out["ranging (T, N, N)"] = T * B * N * (N + len(cfg.ranging.beacons)) * F8 * k * copies
     if cfg.imu.enabled:
         out["imu (T, N, 3)"] = T * B * N * 3 * F8 * k * copies
+    out.update(latency_arrays(cfg, n_envs))
     return out
+
+
+def latency_arrays(cfg: Config, n_envs: int = 1) -> dict[str, float]:
+    """Bytes of the sensor latency ring buffer (:mod:`finkensim.sensors.latency`): B x (largest lag + 1) x N x W,
+    W = 4 sonar + (N + beacons) ranging + 3 IMU columns for each sensor with a lag, + 1 (empty without a lag)."""
+    dt, N = cfg.simulation.dt, float(cfg.copters.n)
+    widths = {"sonar": SONARS, "ranging": N + len(cfg.ranging.beacons), "imu": 3.0}
+    lags = {s: math.floor(getattr(cfg, s).latency / dt + 0.5) for s in widths if getattr(cfg, s).enabled}
+    lags = {s: lag for s, lag in lags.items() if lag > 0}
+    if not lags:
+        return {}
+    W = sum(widths[s] for s in lags) + 1.0
+    return {"latency ring buffer (B, lag + 1, N, W)": float(n_envs) * (max(lags.values()) + 1) * N * W * F8}
 
 
 def episode_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1) -> dict[str, float]:
     """Bytes one sweep episode (or a batched rollout of ``n_envs`` of them, as a tune trial flies) holds: it
-    records poses only; the sensors run without being recorded."""
+    records poses only; the sensors run without being recorded (a latency's ring buffer is counted)."""
     T = _steps(cfg.simulation.duration if duration is None else duration, cfg.simulation.dt)
     N = float(cfg.copters.n)
-    return {f"pose (T, {'B, ' if n_envs != 1 else ''}N, 3)": T * float(n_envs) * N * 3 * F8 * 2}
+    return {f"pose (T, {'B, ' if n_envs != 1 else ''}N, 3)": T * float(n_envs) * N * 3 * F8 * 2,
+            **latency_arrays(cfg, n_envs)}
 
 
 def log_arrays(T: float, N: int, sonars: int = 0, ranging: bool = False, imu: bool = False) -> dict[str, float]:

@@ -28,7 +28,7 @@ def test_bulge_at_times_is_the_whole_logs(T, P, seed, amplitude, reach, shape, r
     f = _flight(T, P, seed)
     times = np.array(data.draw(st.lists(st.integers(0, T - 1), min_size=1, max_size=T)), dtype=np.int64)
     full = f.poses_with_bulge(amplitude, reach, response, shape)
-    part = f.poses_with_bulge(amplitude, reach, response, shape, times)
+    part = f.poses_with_bulge(amplitude, reach, response, shape, times=times)
     np.testing.assert_array_equal(part.bulge[times], full.bulge[times])
     for name in ("pos", "yaw", "theta"):
         assert getattr(part, name) is getattr(full, name)

@@ -23,6 +23,7 @@ def _valley(p):
 class _Diag:
     base: dict = {}
     tables = {"ultrasonic": None}
+    flights: list = []  # no log states a tracking noise
 
     def __init__(self):
         self.calls = 0

@@ -116,3 +116,13 @@ def test_a_foreign_state_is_a_named_error():
     state = SwarmSim(load_config().replace(SMALL)).init(n_envs=1, seed=0)
     with pytest.raises(ConfigError, match="sensor_delay"):
         sim.rollout(state, 2)
+
+
+def test_a_latency_buffer_beyond_the_memory_is_a_named_error(monkeypatch):
+    """A latency of many steps for many copters is refused before it is allocated, naming the latency keys."""
+    from finkensim.budget import MemoryBudgetError
+    from finkensim.sensors.latency import delay_buffer
+
+    monkeypatch.setenv("FINKENSIM_MEMORY_AVAILABLE", "1e6")
+    with pytest.raises(MemoryBudgetError, match="ranging.latency"):
+        delay_buffer(np.array([0, 100_000, 0]), 1, 242, 242)

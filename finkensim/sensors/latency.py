@@ -67,11 +67,18 @@ def delay_columns(lags, R):
 
 def delay_buffer(lags: np.ndarray, B: int, N: int, R: int) -> np.ndarray:
     """An empty ring buffer (B, slots, N, W) for B environments of N copters with R ranging columns; (B, 0, N, 0)
-    when no sensor has a lag."""
+    when no sensor has a lag. A buffer beyond the memory available is a
+    :class:`~finkensim.budget.MemoryBudgetError` naming the latency keys."""
     if int(np.max(lags, initial=0)) <= 0:
         return np.zeros((B, 0, N, 0))
+    from ..budget import check_memory
+
     _, W = delay_columns(np.asarray(lags, dtype=np.int64), int(R))
-    return np.full((B, int(np.max(lags)) + 1, N, W), -1.0)
+    shape = (B, int(np.max(lags)) + 1, N, W)
+    check_memory({f"latency ring buffer {shape}": 8.0 * math.prod(shape)},
+                 f"sensor latencies of {tuple(int(x) for x in lags)} steps (sonar, ranging, imu) for {B} x {N} copters",
+                 "lower sonar.latency / ranging.latency / imu.latency, or raise simulation.dt")
+    return np.full(shape, -1.0)
 
 
 @njit(cache=True, error_model="numpy")

@@ -44,6 +44,7 @@ SCENARIO_BOUNDS: dict[str, tuple[float, float]] = {
 _STRING_CHOICES = {"gap.effects": lambda: sorted(__import__("finkensim.gap.effects", fromlist=["REGISTRY"]).REGISTRY)}
 
 _MAX_STEPS = 1e9  # most steps of a drawn flight (before the memory cap)
+_MAX_LATENCY_STEPS = 50  # most steps of a drawn sensor latency (its ring buffer holds that many readings)
 _MAX_LIST = 3  # longest list drawn for a list field of any length (ranging.beacons, gap.effects)
 
 
@@ -198,6 +199,10 @@ def _combine(draw, d: _Draft, max_flight_bytes: float) -> None:
         else:
             dt = (d.get("imu.acc_noise_density") / MAX_ACC_SAMPLE_NOISE) ** 2
             d.set("simulation.dt", dt)
+    for sensor in ("sonar", "ranging", "imu"):  # a latency of many steps is a ring buffer of that many readings
+        key = f"{sensor}.latency"
+        if d.get(key) > _MAX_LATENCY_STEPS * dt and d.settable(key):
+            d.set(key, _MAX_LATENCY_STEPS * dt)
     if duration < dt and d.settable("simulation.duration"):
         d.set("simulation.duration", dt)
     if duration / dt > _MAX_STEPS and d.settable("simulation.duration"):  # (also overflows budget.flight_arrays)
