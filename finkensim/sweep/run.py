@@ -126,9 +126,11 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
                     bar.set_postfix(failed=n_failed, refresh=False)
     finally:
         # tearing a local Dask cluster down while futures are cancelled (Ctrl-C, SIGTERM) logs scheduler errors about
-        # keys it can no longer gather: noise at that point (every finished run is kept), silenced for the teardown
-        quiet = _quiet_logger("distributed") if dask else contextlib.nullcontext()
-        with quiet:
+        # keys it can no longer gather, and distributed's own sync helper can fail in its cancel callback (tornado logs
+        # a NameError): noise at that point (every finished run is kept), silenced for the teardown
+        with contextlib.ExitStack() as quiet:
+            for name in ("distributed", "tornado.application") if dask else ():
+                quiet.enter_context(_quiet_logger(name))
             close = getattr(results, "close", None)
             if close is not None:
                 close()  # shuts a process pool down, cancels pending Dask futures
