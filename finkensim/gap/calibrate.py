@@ -72,8 +72,8 @@ def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, li
 
 
 def correction_tables(report) -> dict:
-    """The learned correction's tables of ``report`` (sensor → :class:`~finkensim.sensors.correction_table.
-    CorrectionTable`; empty without a correction)."""
+    """The learned correction's tables of ``report``: sensor →
+    :class:`~finkensim.sensors.correction_table.CorrectionTable` (empty without a correction)."""
     corr = report.details.correction
     return dict(getattr(corr, "tables", None) or {})
 

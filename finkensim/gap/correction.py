@@ -65,7 +65,7 @@ TABLE_MIN_ROWS = 200
 def residual_table(median: np.ndarray, residual: np.ndarray, levels: np.ndarray) -> CorrectionTable:
     """The correction as a table the simulator applies: the empirical quantiles at ``levels`` (Q,) of the training
     residuals (n,) m in bins of the model median (n,) m (equal-count bins, at most :data:`TABLE_BINS`, each with at
-    least :data:`TABLE_MIN_ROWS` readings; the outer edges widened by 1 mm)."""
+    least ``TABLE_MIN_ROWS`` readings; the outer edges widened by 1 mm)."""
     G = max(1, min(TABLE_BINS, median.size // TABLE_MIN_ROWS))
     edges = np.unique(np.quantile(median, np.linspace(0.0, 1.0, G + 1)))
     if edges.size < 2:

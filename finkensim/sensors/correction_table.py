@@ -8,7 +8,7 @@ referenced from ``calibrated.toml`` (``sonar.correction_file``), which the simul
 
 with g the bin of ``ref`` among the table's edges, Q_g the residual's quantile function in that bin (linear between
 its quantile levels, constant beyond the first and last) and u uniform, keyed per (seed, environment, step, copter,
-sonar) on its own stream (:data:`~finkensim.kernels.rng.STREAM_CORRECTION`). The correction's distribution replaces
+sonar) on its own stream (``finkensim.kernels.rng.STREAM_CORRECTION``). The correction's distribution replaces
 the error model's for every reading with an echo (the table was fitted on the readings the model explained
 badly, noise included); readings without an echo stay ``max_range``.
 

@@ -114,7 +114,7 @@ class RangingModel:
         self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE), **neutral_radio()._asdict())
 
     def with_radio(self, **changes) -> "RangingModel":
-        """A copy with the given radio effects (keys of :data:`RADIO_KEYS`, units as the ``[ranging]`` config keys
+        """A copy with the given radio effects (keys of ``RADIO_KEYS``, units as the ``[ranging]`` config keys
         of the same names) replaced; the error model, its table and mixture are shared."""
         new = object.__new__(type(self))
         new.__dict__.update(self.__dict__)
@@ -263,7 +263,7 @@ def _trim(a: np.ndarray) -> np.ndarray:
 
 
 def radio_params(v: dict) -> RadioParams:
-    """The kernels' :class:`RadioParams` of the radio effects ``v`` (keys of :data:`RADIO_KEYS`, config units)."""
+    """The kernels' :class:`RadioParams` of the radio effects ``v`` (keys of ``RADIO_KEYS``, config units)."""
     delay = _trim(np.asarray(v["node_delay"], dtype=np.float64).reshape(-1))
     per = np.asarray(v["antenna_offset_per_copter"], dtype=np.float64).reshape(-1, 2)
     per = _trim(np.concatenate([per, np.zeros((per.shape[0], 1))], axis=1))
