@@ -22,6 +22,7 @@ from .calibrate import write_calibrated
 from .diagnose import Diagnosis
 from .selection import run_diagnosis
 from .validate import generate, get_case, run_case
+from .validate_tables import wilson
 
 __all__ = ["run_calibrated_case", "calibrated_table"]
 
@@ -49,16 +50,6 @@ def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: floa
     return row
 
 
-def _wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    if n == 0:
-        return math.nan, math.nan
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return c - h, c + h
-
-
 def calibrated_table(rows: list[dict]) -> str:
     """Markdown: per case, trials, the share with no significant gap after calibration (Wilson 95 % interval), the
     median of what is left of the first diagnosis's held-out gap, and the share of trials whose calibration used the
@@ -73,7 +64,7 @@ def calibrated_table(rows: list[dict]) -> str:
         rs = by[case]
         n = len(rs)
         k = sum(not r["calibrated_significant"] for r in rs)
-        lo, hi = _wilson(k, n)
+        lo, hi = wilson(k, n)
         ratio = np.nanmedian([r["calibrated_gap_ratio"] for r in rs]) if n else math.nan
         corr = sum(bool(r.get("calibrated_correction")) for r in rs)
         lines.append(f"| {case} | {n} | {100 * k / n:.0f} % | {100 * lo:.0f}–{100 * hi:.0f} % | "
