@@ -1,12 +1,12 @@
 """``python -m benchmarks.diagnosis [--no-gap-timing]``: what a diagnosis costs (``make bench``, section "diagnosis").
 
 * **Validation trials** (:data:`TRIALS`): one ``finkensim gap-validate`` trial each (2 flights × 30 s, random
-  recording conventions, :func:`finkensim.gap.validate.run_case`), singles and pairs, in this process on one numba
+  recording conventions, :func:`finkensim.gap.validation.cases.run_case`), singles and pairs, in this process on one numba
   thread, as the process-pool workers of ``gap-validate --executor process`` run them. Measured: CPU seconds
   (``time.process_time``) of each trial after a warm-up trial (the kernels compiled or loaded first), and the
   verdict (right / wrong), so a change that cuts time also shows whether it changed an answer.
 * **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials ÷ the machine's cores.
-* **Where the trials' CPU goes**: CPU seconds of each effect's fits (:meth:`~finkensim.gap.diagnose.Diagnosis.fit`,
+* **Where the trials' CPU goes**: CPU seconds of each effect's fits (:meth:`~finkensim.gap.diagnosis.Diagnosis.fit`,
   every round) and of the held-out scoring, summed over the trials.
 * **examples/gap_timing.py** (``finkensim gap`` on 10 copters × 10 min, in a subprocess): wall-clock seconds and peak
   resident memory, as the example prints them; and the same command on a flight of 1 h (:data:`MEMORY_DURATION`)
@@ -51,11 +51,11 @@ WARMUP = ("wall_bulge+sonar_bias", 5)
 
 @contextlib.contextmanager
 def fit_clock():
-    """While active, CPU seconds (``time.process_time``) of :meth:`~finkensim.gap.diagnose.Diagnosis.fit` per effect
-    and of :meth:`~finkensim.gap.diagnose.Diagnosis.score_heldout` (key "(held-out scoring)") are summed into the
+    """While active, CPU seconds (``time.process_time``) of :meth:`~finkensim.gap.diagnosis.Diagnosis.fit` per effect
+    and of :meth:`~finkensim.gap.diagnosis.Diagnosis.score_heldout` (key "(held-out scoring)") are summed into the
     yielded dict (name → [calls, seconds]); the methods are restored on exit. Nested calls (a joint fit calls no
     ``fit``) are not double counted: ``fit`` and ``score_heldout`` do not call each other."""
-    diagnose = importlib.import_module("finkensim.gap.diagnose")  # the package exports a function of that name
+    diagnose = importlib.import_module("finkensim.gap.diagnosis")
     cls = diagnose.Diagnosis
     fit, score = cls.fit, cls.score_heldout
     clock: dict = {}
@@ -94,7 +94,7 @@ def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURAT
     ``clock``: a dict that receives the timed trials' CPU seconds per effect fitted (see :func:`fit_clock`)."""
     import numba
 
-    from finkensim.gap.validate import run_case
+    from finkensim.gap.validation.cases import run_case
 
     before = numba.get_num_threads()
     numba.set_num_threads(threads)

@@ -50,7 +50,7 @@ def main() -> int:
 def simulate(path: Path, duration: float) -> dict:
     """Simulate the flight (10 copters, ``duration`` s, the wall_bulge case, seed 7) into ``path``; its truth."""
     from finkensim.flightlog import save
-    from finkensim.gap.validate import CASES, generate
+    from finkensim.gap.validation.cases import CASES, generate
 
     logs, _, truth = generate(CASES["wall_bulge"], seed=7, n_flights=1, duration=duration, n_copters=10)
     save(logs[0], path)

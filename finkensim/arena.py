@@ -270,7 +270,7 @@ def bulge_cutoff(reach: float, shape: float) -> float:
 def bulge_target(d, amplitude, reach, shape):
     """The curtain bulge's target displacement (m, toward the arena) of a plate d m from the nearest copter body:
     ``amplitude · exp(−(d/reach)^shape)`` (shape 2 a Gaussian; larger a flat bulge that ends sharply near reach).
-    The law of the gap effect ``wall_bulge`` (:func:`finkensim.gap.bulge.bulge_displacement`)."""
+    The law of the gap effect ``wall_bulge`` (:func:`finkensim.gap.model.bulge.bulge_displacement`)."""
     return amplitude * np.exp(-(d / reach) ** shape)
 
 

@@ -283,7 +283,7 @@ def cmd_gap(args) -> int:
     from .config import ConfigError, load_config
     from .flightlog import FlightLogError, load
     from .gap import Diagnosis, check_effects, check_heldout, run_diagnosis
-    from .gap.replay import GapInputError
+    from .gap.model.replay import GapInputError
 
     _use_agg()
     _output_dir(prog, args.out, create=False)

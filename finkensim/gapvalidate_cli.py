@@ -1,5 +1,5 @@
 """``finkensim gap-validate``: the gap diagnosis checked on simulated flights with a withheld effect
-(:mod:`finkensim.gap.validate`, :mod:`finkensim.gap.validate_sweep`)."""
+(:mod:`finkensim.gap.validation.cases`, :mod:`finkensim.gap.validation.sweep`)."""
 from __future__ import annotations
 
 import math
@@ -49,9 +49,9 @@ def cmd_gap_validate(args) -> int:
     prog = args.prog
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")  # as in cmd_gap: serial trials run many short kernels
     from .atomic import write_atomic
-    from .gap.validate import CASES, expand_cases, get_case
-    from .gap.validate_tables import confusion
-    from .gap.validate_sweep import run_trials
+    from .gap.validation.cases import CASES, expand_cases, get_case
+    from .gap.validation.tables import confusion
+    from .gap.validation.sweep import run_trials
 
     cases = expand_cases(args.cases, args.pairs)
     unknown = []
@@ -97,7 +97,7 @@ def cmd_gap_validate(args) -> int:
     write_atomic(out / "matrix.md", lambda p: p.write_text(md))
     print(md)
     if args.calibrate:
-        from .gap.validate_calibrate import calibrated_table
+        from .gap.validation.calibrated import calibrated_table
 
         cal_md = calibrated_table(rows)
         write_atomic(out / "calibrated.md", lambda p: p.write_text(cal_md))

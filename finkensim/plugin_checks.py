@@ -1,14 +1,14 @@
 """Public checkers of plug-ins, in the style of ``gymnasium.utils.env_checker.check_env`` and scikit-learn's
 ``check_estimator``: :func:`check_behaviour` for a behaviour (:mod:`finkensim.behaviours.registry`),
 :func:`check_task` for an RL reward task (:mod:`finkensim.envs.tasks`) and :func:`check_effect` for an effect of the
-gap diagnosis (:mod:`finkensim.gap.effects`). Each raises :class:`PluginError` naming
+gap diagnosis (:mod:`finkensim.gap.attribute.effects`). Each raises :class:`PluginError` naming
 what failed, the value and what was expected, and returns None when the plug-in passes. The tests run every
 registered plug-in through them; run them on your own before registering it::
 
     from finkensim.testing import check_behaviour, check_task
     check_behaviour(my_behaviour)          # a Behaviour
     check_task(MyTask())                   # an object with reset(ctx, pos) and reward(ctx, world)
-    check_effect(my_effect)                # a finkensim.gap.effects.Effect
+    check_effect(my_effect)                # a finkensim.gap.attribute.effects.Effect
 """
 from __future__ import annotations
 
@@ -243,11 +243,11 @@ def _keys(model) -> dict:
 
 
 def check_effect(effect, cfg: Config | None = None) -> None:
-    """Check an effect of the gap diagnosis against its contract (:class:`~finkensim.gap.effects.Effect`).
+    """Check an effect of the gap diagnosis against its contract (:class:`~finkensim.gap.attribute.effects.Effect`).
 
     Checked: a name, known sensors and parameters with finite bounds lo < hi; the starting values lie within the
     bounds (or at the neutral 0); at the starting values the model is the base model (neutral parameters change
-    nothing); at the bounds and inside them ``apply`` returns a :class:`~finkensim.gap.model.ModelParams`, changes no
+    nothing); at the bounds and inside them ``apply`` returns a :class:`~finkensim.gap.model.params.ModelParams`, changes no
     sensor the effect does not name, leaves the base model as it was and gives the same model twice (pure); with a
     ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor.
 
@@ -263,11 +263,11 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     PluginError
         Naming the check that failed, the value and what was expected.
     """
-    from .gap.effects import Effect
-    from .gap.model import ModelParams
+    from .gap.attribute.effects import Effect
+    from .gap.model.params import ModelParams
 
     if not isinstance(effect, Effect):
-        raise PluginError(f"check_effect({effect!r}): expected a finkensim.gap.effects.Effect")
+        raise PluginError(f"check_effect({effect!r}): expected a finkensim.gap.attribute.effects.Effect")
     name = f"effect {effect.name!r}"
     if not isinstance(effect.name, str) or not effect.name:
         _fail(name, "expected a non-empty name")

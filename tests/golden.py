@@ -114,7 +114,7 @@ def _canonical(x):
 
 def gap_digest() -> dict[str, str]:
     from finkensim.gap import diagnose
-    from finkensim.gap.validate import CASES, generate
+    from finkensim.gap.validation.cases import CASES, generate
 
     small = {"gap.draws": 8, "gap.max_samples_per_flight": 150, "gap.fit_max_readings": 3000, "gap.n_boot": 60}
     out = {}

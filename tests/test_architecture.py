@@ -93,10 +93,12 @@ def test_imports_follow_the_layers(path):
             continue
         if node.level == 0 and (node.module or "").startswith("finkensim."):
             target = _top(node.module[len("finkensim."):])
-        elif node.level == 1 and len(rel.parts) == 1 and node.module:
-            target = _top(node.module)
-        elif node.level == 2 and node.module:
-            target = _top(node.module)
+        elif node.level > 0:  # relative to the module's package, at any depth (gap/model/replay.py: ...config)
+            package = list(rel.parts[:-1])
+            base = package[:len(package) - (node.level - 1)] + ([node.module] if node.module else [])
+            if not base:
+                continue
+            target = base[0]
         else:
             continue
         if target in _LEVEL and target != here:

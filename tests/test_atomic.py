@@ -106,7 +106,7 @@ def test_sweep_outputs_are_atomic(tmp_path, monkeypatch):
 def test_gap_validate_trial_log_is_rewritten_whole_and_resumes(tmp_path, monkeypatch):
     import json
 
-    import finkensim.gap.validate_sweep as vs
+    import finkensim.gap.validation.sweep as vs
 
     calls = []
 

@@ -176,7 +176,7 @@ def test_diagnosis_section_reports_trials_and_targets():
     # every catalogued effect on the null trial's sensors was fitted at least once, each fit's CPU counted
     assert "sonar_bias" in clock and clock["sonar_bias"][0] >= 1 and clock["sonar_bias"][1] > 0
     assert sum(s for _, s in clock.values()) <= rows[0]["cpu_s"] + 1e-6
-    from finkensim.gap.diagnose import Diagnosis
+    from finkensim.gap.diagnosis import Diagnosis
     assert Diagnosis.fit.__name__ == "fit"  # the clock is taken off again
     res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6, fits=clock,
                gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5),

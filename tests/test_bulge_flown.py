@@ -1,5 +1,5 @@
 """The curtain bulge flown by the simulator (``walls.model``): the world's kernel follows the law the gap effect
-``wall_bulge`` fits (:func:`finkensim.gap.bulge.bulge_displacement`, its NumPy reference), the sense step sees
+``wall_bulge`` fits (:func:`finkensim.gap.model.bulge.bulge_displacement`, its NumPy reference), the sense step sees
 the bulged plates in the compiled loop and the reference path alike, and bad keys are named errors."""
 import numpy as np
 import pytest
@@ -8,9 +8,9 @@ from hypothesis import strategies as st
 
 from finkensim.arena import HingeParams, bulge_cutoff, bulge_step_env
 from finkensim.config import ConfigError, load_config
-from finkensim.gap import effects as fx
-from finkensim.gap.bulge import bulge_displacement
-from finkensim.gap.model import ModelParams
+from finkensim.gap.attribute import effects as fx
+from finkensim.gap.model.bulge import bulge_displacement
+from finkensim.gap.model.params import ModelParams
 
 HP = HingeParams(False, 1.0, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1)
 

@@ -1,4 +1,4 @@
-"""A calibrated scenario out of a diagnosis (finkensim.gap.calibrate): every catalogued effect with a config
+"""A calibrated scenario out of a diagnosis (finkensim.gap.quantify.calibrate): every catalogued effect with a config
 counterpart flies exactly the model the diagnosis fitted, and the calibrated TOML reads back as the same Config."""
 import math
 
@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 import finkensim as fs
 from finkensim.config import ConfigError, load_config
-from finkensim.gap import effects as fx
-from finkensim.gap.model import ModelParams
+from finkensim.gap.attribute import effects as fx
+from finkensim.gap.model.params import ModelParams
 
 #: catalogued effects the simulator cannot fly yet (issue "Close the loop", item 1); shrinking this set is the work
 NOT_FLOWN_YET: set = set()
@@ -68,7 +68,7 @@ def test_pose_noise_calibrates_the_log_writer():
 
 @pytest.fixture(scope="module")
 def sonar_bias_report():
-    from finkensim.gap.validate import CASES, generate
+    from finkensim.gap.validation.cases import CASES, generate
 
     logs, cfg, truth = generate(CASES["sonar_bias"], 3, n_flights=2, duration=20.0)
     small = {"gap.draws": 8, "gap.max_samples_per_flight": 150, "gap.fit_max_readings": 3000, "gap.n_boot": 60}
@@ -77,7 +77,7 @@ def sonar_bias_report():
 
 
 def test_a_diagnosis_writes_a_calibrated_config_that_runs(sonar_bias_report, tmp_path):
-    from finkensim.gap.calibrate import calibration
+    from finkensim.gap.quantify.calibrate import calibration
 
     report, cfg, truth = sonar_bias_report
     assert report.verdict["effect"] == "sonar_bias"
@@ -100,7 +100,7 @@ def test_a_diagnosis_writes_a_calibrated_config_that_runs(sonar_bias_report, tmp
 def test_effects_without_a_counterpart_are_listed_not_flown(sonar_bias_report, monkeypatch):
     from dataclasses import replace
 
-    from finkensim.gap.calibrate import calibrated_toml, calibration
+    from finkensim.gap.quantify.calibrate import calibrated_toml, calibration
 
     report, cfg, _ = sonar_bias_report
     # an effect the simulator would not fly (every catalogued one may fly: pretend wall_bulge does not)
@@ -117,7 +117,7 @@ def test_effects_without_a_counterpart_are_listed_not_flown(sonar_bias_report, m
 def test_a_report_without_its_config_says_why():
     from dataclasses import replace
 
-    from finkensim.gap.result import GapDetails, GapReport
+    from finkensim.gap.report.result import GapDetails, GapReport
 
     report = GapReport(flights={"train": [], "heldout": []}, score="x", gap_before=math.nan, locations=[],
                        effects=[], verdict={}, details=GapDetails())
@@ -159,7 +159,7 @@ def test_calibration_intervals_go_into_the_file_and_the_sweep(sonar_bias_report,
 
 
 def test_calibrated_table_counts_trials_without_a_gap():
-    from finkensim.gap.validate_calibrate import calibrated_table
+    from finkensim.gap.validation.calibrated import calibrated_table
 
     rows = [{"case": "sonar_bias", "calibrated_significant": s, "calibrated_gap_ratio": r, "calibrated_correction": ""}
             for s, r in ((False, 0.1), (False, 0.2), (True, 0.5), (False, 0.0))]
@@ -175,7 +175,7 @@ def test_a_bulge_refitted_with_the_hinge_law_is_not_flown_as_if_it_were_the_cata
     calibration must say so (flown=False) instead of flying the catalogue law silently."""
     from types import SimpleNamespace
 
-    from finkensim.gap.calibrate import calibration
+    from finkensim.gap.quantify.calibrate import calibration
 
     bulge = {"amplitude": 0.1, "reach": 0.4, "response": 0.0, "shape": 2.0}
 

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from finkensim.config import load_config
-from finkensim.gap.correction import residual_table
+from finkensim.gap.quantify.correction import residual_table
 from finkensim.sensors.correction_table import (CorrectionFileError, CorrectionTable, correction_quantile,
                                                 corrected_reference, read_correction, write_correction)
 
@@ -91,7 +91,7 @@ def test_the_simulator_flies_the_correction(tmp_path):
 
 
 def test_the_diagnosis_draws_the_same_correction(tmp_path):
-    from finkensim.gap.model import ModelParams, sonar_echo_errors, sonar_reading_draws
+    from finkensim.gap.model.params import ModelParams, sonar_echo_errors, sonar_reading_draws
     from finkensim.kernels.raycast import HIT_WALL
 
     cfg = load_config().replace({"sonar.correction_file": str(_shift_table(tmp_path))})

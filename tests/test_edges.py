@@ -94,7 +94,7 @@ def test_one_copter_world_and_swarm_run():
 def test_one_sample_log_saves_and_the_diagnosis_names_the_problem(tmp_path):
     import finkensim as fs
     from finkensim.flightlog import FlightLog, load, save
-    from finkensim.gap.replay import GapInputError
+    from finkensim.gap.model.replay import GapInputError
 
     log = FlightLog(t=np.array([0.0]), arena=np.array([W, L]), pose=np.array([[[1.0, 1.0, 0.0]]]),
                     copter_ids=np.array(["a"]))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 import finkensim.gap  # noqa: F401  (registers the whole catalogue, radio effects included)
-from finkensim.gap import effects as fx
+from finkensim.gap.attribute import effects as fx
 from finkensim.testing import PluginError, check_effect
 
 #: catalogued effects whose start values are not exactly the base model (found by check_effect, to be fixed in the
@@ -32,7 +32,7 @@ def test_every_catalogued_effect_passes_its_checker(name):
 
 # --- docs/architecture.md, "Add an effect", literally ------------------------------------------------------------
 
-from finkensim.gap.effects import Effect, Param, register  # noqa: E402
+from finkensim.gap.attribute.effects import Effect, Param, register  # noqa: E402
 
 SONAR_OFFSET = Effect(
     name="sonar_offset_demo", sensors=("ultrasonic",),
@@ -69,5 +69,5 @@ def test_bad_bounds_and_sensors_are_named():
         check_effect(Effect("bounds", ("ultrasonic",), (Param("x", 1.0, 0.0),), lambda b, v: b))
     with pytest.raises(PluginError, match="sensors"):
         check_effect(Effect("sonarz", ("sonar",), (Param("x", 0.0, 1.0),), lambda b, v: b))
-    with pytest.raises(PluginError, match="expected a finkensim.gap.effects.Effect"):
+    with pytest.raises(PluginError, match="expected a finkensim.gap.attribute.effects.Effect"):
         check_effect("wall_bulge")

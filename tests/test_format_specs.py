@@ -95,7 +95,7 @@ def test_gap_report_required_features_and_sensors_agree_with_the_shared_spec():
 
 
 def test_gap_report_page_lists_the_keys_the_code_writes():
-    from finkensim.gap.result import FORMAT, SPEC_KEYS
+    from finkensim.gap.report.result import FORMAT, SPEC_KEYS
 
     report, additions = json_blocks(ours("gap-report.md"))
     assert report["format"] == FORMAT

@@ -15,16 +15,16 @@ from finkensim import flightlog
 from finkensim.arena import Arena
 from finkensim.cli import main
 from finkensim.config import Config, ConfigError, config_from_dict
-from finkensim.gap import replay as rp
+from finkensim.gap.model import replay as rp
 from finkensim.gap import Diagnosis, GapReport, diagnose, run_diagnosis
-from finkensim.gap.features import sonar_channel_names
-from finkensim.gap.model import gaussian_draws, sonar_echo_errors, sonar_reading_draws
-from finkensim.gap.replay import GapInputError
-from finkensim.gap.report import SPEC_KEYS, spec_report
-from finkensim.gap.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
+from finkensim.gap.model.features import sonar_channel_names
+from finkensim.gap.model.params import gaussian_draws, sonar_echo_errors, sonar_reading_draws
+from finkensim.gap.model.replay import GapInputError
+from finkensim.gap.report.write import SPEC_KEYS, spec_report
+from finkensim.gap.model.scoring import (brier_gap, crps_ensemble, crps_normal, ensemble_terms, ensemble_terms_grouped,
                                    gap_ensemble)
-from finkensim.gap.stats import BlockBootstrap, fdr_significant, time_blocks
-from finkensim.gap.validate import CASES, generate
+from finkensim.gap.detect.stats import BlockBootstrap, fdr_significant, time_blocks
+from finkensim.gap.validation.cases import CASES, generate
 from finkensim.kernels.rng import STREAM_EFFECT, counter_key
 from finkensim.sensors.sonar_kernels import measured_reading
 from finkensim.sensors.sonar_model import (CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, sonar_scalars,
@@ -87,7 +87,7 @@ def test_ensemble_terms_match_brute_force():
 @given(n=st.integers(1, 23), M=st.integers(2, 30), seed=st.integers(0, 2**32 - 1))
 def test_grouped_terms_four_rows_at_once_equal_row_by_row(n, M, seed):
     """The four-row blocks of ensemble_terms_grouped give each row's numbers bit for bit (mixed periods, NaN)."""
-    import finkensim.gap.scoring as scoring
+    import finkensim.gap.model.scoring as scoring
     rng = np.random.default_rng(seed)
     draws, y = rng.normal(size=(n, M)), rng.normal(size=n)
     y[rng.random(n) < 0.1] = np.nan
@@ -527,7 +527,7 @@ def test_gap_command_lets_idle_openmp_threads_sleep_unless_the_user_chose(tmp_pa
 def test_every_model_parameter_belongs_to_exactly_one_sensor_for_score_caching():
     from dataclasses import fields
 
-    from finkensim.gap.model import SENSOR_FIELDS, SHARED_FIELDS, ModelParams
+    from finkensim.gap.model.params import SENSOR_FIELDS, SHARED_FIELDS, ModelParams
 
     for f in fields(ModelParams):
         owners = [s for s, names in SENSOR_FIELDS.items() if f.name in names]
@@ -546,7 +546,7 @@ def test_imu_table_equals_the_pose_derived_ideal_on_a_noise_free_flight(baseline
     for the accelerometer) equals the Δ of mean velocities over the baseline computed from the poses: the two
     sides of the IMU comparison describe the same quantity, whatever the baseline."""
     from finkensim.config import load_config
-    from finkensim.gap.diagnose import Diagnosis
+    from finkensim.gap.diagnosis import Diagnosis
     from finkensim.scenario import simulate_flight
     cfg = load_config().replace({"copters.n": 3, "imu.acc_noise_density": 0.0, "imu.acc_bias_walk": 0.0,
                                  "imu.gyro_noise_density": 0.0, "imu.gyro_bias_walk": 0.0,
@@ -575,7 +575,7 @@ class _FixedOverall:
 
 
 def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unknown():
-    from finkensim.gap.selection import _sensor_gaps
+    from finkensim.gap.attribute.selection import _sensor_gaps
 
     cfg = Config().gap
     diag = _FixedOverall({
@@ -593,7 +593,7 @@ def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unk
 
 
 def test_the_configured_models_gap_is_tested_one_sided_and_unknown_power_is_no_gap():
-    from finkensim.gap.selection import _sensor_gaps
+    from finkensim.gap.attribute.selection import _sensor_gaps
 
     cfg = Config().gap
     diag = _FixedOverall({"ultrasonic": (0.2, (0.1, 0.3), 1e-6), "imu": (-0.2, (-0.3, -0.1), 1.0 - 1e-6),
@@ -607,7 +607,7 @@ def test_the_configured_models_gap_is_tested_one_sided_and_unknown_power_is_no_g
 @settings(max_examples=30, deadline=None)
 @given(st.integers(1, 6), st.integers(1, 4), st.integers(1, 5), st.integers(1, 8), st.integers(1, 24), st.integers(0, 10**6))
 def test_gather_draws_equals_fancy_indexing(K, N, X, G, M, seed):
-    from finkensim.gap.predictive import gather_draws
+    from finkensim.gap.model.predictive import gather_draws
 
     rng = np.random.default_rng(seed)
     a = rng.normal(size=(K, N, X, G))

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from finkensim.gap.replay import Flight
+from finkensim.gap.model.replay import Flight
 
 
 def _flight(T, P, seed):

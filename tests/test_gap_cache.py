@@ -1,11 +1,11 @@
-"""The diagnosis's bounded caches (:mod:`finkensim.gap.cache`): count and byte limits, least recently used first."""
+"""The diagnosis's bounded caches (:mod:`finkensim.gap.model.cache`): count and byte limits, least recently used first."""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from finkensim.gap.cache import LRU, nbytes_of
+from finkensim.gap.model.cache import LRU, nbytes_of
 
 
 def test_nbytes_counts_each_array_once():

@@ -2,7 +2,7 @@
 
 - The censoring (threshold-weighted CRPS) finds a tool's range limits and no-echo sentinel from the log and
   makes every way of recording a lost echo score alike; the gap stays zero-mean under the model.
-- The shrink of :mod:`finkensim.gap.shrink` never exceeds 1, and an over-dispersed fit scores below the right
+- The shrink of :mod:`finkensim.gap.quantify.shrink` never exceeds 1, and an over-dispersed fit scores below the right
   effect even when its calibration gap is zero.
 """
 from __future__ import annotations
@@ -15,9 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from finkensim.gap.censoring import Censoring, atoms, detect_censoring
-from finkensim.gap.scoring import ensemble_terms
-from finkensim.gap.shrink import ShrinkMeter
+from finkensim.gap.detect.censoring import Censoring, atoms, detect_censoring
+from finkensim.gap.model.scoring import ensemble_terms
+from finkensim.gap.quantify.shrink import ShrinkMeter
 from tests.stats import assert_above_se, assert_mean_within_se, assert_within_se, se_bootstrap, se_mean
 
 MAX, MIN, SIGMA = 3.0, 0.2, 0.05
@@ -189,8 +189,8 @@ def test_crps_and_threshold_weighted_crps_equal_scoringrules(seed):
     """finkensim's ensemble CRPS is the fair estimator and its censored score the threshold-weighted CRPS with
     chaining v = clip(·, lo, hi): both equal scoringrules' implementations on random ensembles to rounding."""
     sr = pytest.importorskip("scoringrules")
-    from finkensim.gap.censoring import Censoring
-    from finkensim.gap.scoring import crps_ensemble
+    from finkensim.gap.detect.censoring import Censoring
+    from finkensim.gap.model.scoring import crps_ensemble
 
     rng = np.random.default_rng(seed)
     n, M = 200, int(rng.integers(4, 40))

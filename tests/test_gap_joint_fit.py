@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from finkensim.gap.effects import Effect, Param
-from finkensim.gap.fits import joint_fit
+from finkensim.gap.attribute.effects import Effect, Param
+from finkensim.gap.attribute.fits import joint_fit
 
 
 def _effect(name, params):

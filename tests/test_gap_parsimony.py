@@ -1,6 +1,6 @@
 """Parsimony of the gap diagnosis (issue 41): catch-alls bounded by what the log states, and a catch-all beside a
-structured effect kept only against a more flexible fit of that effect (``finkensim/gap/stated.py``,
-``finkensim/gap/parsimony.py``, ``finkensim/gap/bulge.py::bulge_target``)."""
+structured effect kept only against a more flexible fit of that effect (``finkensim/gap/attribute/stated.py``,
+``finkensim/gap/attribute/parsimony.py``, ``finkensim/gap/model/bulge.py::bulge_target``)."""
 from __future__ import annotations
 
 import math
@@ -12,13 +12,13 @@ from hypothesis import given, settings, strategies as st
 
 from finkensim.arena import amplitude_law
 from finkensim.gap import Diagnosis, run_diagnosis
-from finkensim.gap.bulge import bulge_displacement, bulge_target
-from finkensim.gap.conventions import Conventions
-from finkensim.gap.fits import joint_fit
-from finkensim.gap.effects import REGISTRY
-from finkensim.gap.parsimony import flexible_version
-from finkensim.gap.stated import stated_excess, stated_fields, stated_floor
-from finkensim.gap.validate import CASES, generate
+from finkensim.gap.model.bulge import bulge_displacement, bulge_target
+from finkensim.gap.validation.conventions import Conventions
+from finkensim.gap.attribute.fits import joint_fit
+from finkensim.gap.attribute.effects import REGISTRY
+from finkensim.gap.attribute.parsimony import flexible_version
+from finkensim.gap.attribute.stated import stated_excess, stated_fields, stated_floor
+from finkensim.gap.validation.cases import CASES, generate
 
 SMALL = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}
 #: another tool's recording (as in tests/test_gap_validate.py), stating 5 mm of tracking noise in its meta

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from finkensim.gap.scoring import crps_normal, normal_pdf, normal_sf
-from finkensim.gap.stats import bh_adjusted, fdr_significant
+from finkensim.gap.model.scoring import crps_normal, normal_pdf, normal_sf
+from finkensim.gap.detect.stats import bh_adjusted, fdr_significant
 
 floats = st.floats(-40.0, 40.0, allow_nan=False)
 
@@ -49,8 +49,8 @@ def test_bh_adjusted_is_scipys(p):
 
 
 def test_diagnosis_modules_do_not_import_scipy_stats():
-    code = ("import sys, numpy as np; import finkensim.cli, finkensim.gap.selection, finkensim.gap.report; "
-            "from finkensim.gap.stats import fdr_significant, BlockBootstrap; fdr_significant([0.01, 0.2, 0.03]); "
+    code = ("import sys, numpy as np; import finkensim.cli, finkensim.gap.attribute.selection, finkensim.gap.report.write; "
+            "from finkensim.gap.detect.stats import fdr_significant, BlockBootstrap; fdr_significant([0.01, 0.2, 0.03]); "
             "print('scipy.stats' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", out.stdout + out.stderr

@@ -1,4 +1,4 @@
-"""The targeted test of a gap (:func:`finkensim.gap.selection._targeted_test`): when the omnibus calibration test finds
+"""The targeted test of a gap (:func:`finkensim.gap.attribute.selection._targeted_test`): when the omnibus calibration test finds
 nothing, a structured effect whose fit improves the held-out score significantly still reveals a gap; catch-alls
 never do, and the threshold is Bonferroni over the structured candidates.
 
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from finkensim.gap import Diagnosis, run_diagnosis
-from finkensim.gap import selection as S
-from finkensim.gap.diagnose import FitResult
-from finkensim.gap.report import markdown
-from finkensim.gap.validate import Case, _post_latency, generate
+from finkensim.gap.attribute import selection as S
+from finkensim.gap.diagnosis import FitResult
+from finkensim.gap.report.write import markdown
+from finkensim.gap.validation.cases import Case, _post_latency, generate
 from finkensim.config import load_config
 
 N = 4000

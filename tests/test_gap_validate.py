@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from finkensim.gap import Diagnosis, run_diagnosis
-from finkensim.gap.effects import REGISTRY
-from finkensim.gap.conventions import Conventions
-from finkensim.gap.validate import CASES, generate, get_case
+from finkensim.gap.attribute.effects import REGISTRY
+from finkensim.gap.validation.conventions import Conventions
+from finkensim.gap.validation.cases import CASES, generate, get_case
 
 SMALL = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}
 SEED = 3
@@ -91,14 +91,14 @@ def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_j
     width and constant cross-talk.)"""
     import zlib
     import numpy as np
-    from finkensim.gap.conventions import draw_conventions
+    from finkensim.gap.validation.conventions import draw_conventions
     name = "wall_bulge+sonar_bias"
     conv = draw_conventions(np.random.default_rng([seed, zlib.crc32(name.encode())]))
     logs, cfg, _ = generate(get_case(name), seed, n_flights=2, duration=30.0, conventions=conv)
     rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg))
     v = rep["verdict"]
     assert v["effects"] == ["wall_bulge", "sonar_bias"] and not v["unexplained"], v
-    # the parsimony step's "tried: ..." lines (gap/parsimony.py) come after the selection's own steps
+    # the parsimony step's "tried: ..." lines (gap/attribute/parsimony.py) come after the selection's own steps
     steps = [w["step"] for w in rep.details.waterfall if not w["step"].startswith("tried:")]
     assert steps[-1] == "joint swap" and f"+ {greedy}" in steps, steps
     assert 0.7 <= v["shrink_heldout"] <= 1.0
@@ -110,9 +110,9 @@ def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_j
 def test_two_effects_that_trade_off_are_found_by_a_joint_fit_when_the_greedy_steps_keep_one_or_none(name, step, first):
     """Seed 9 of the random conventions axis (validation trials that named the factor alone, and nothing): effects on
     one sensor trade off, so a conditional fit of the second on top of the first (or of either alone) shows little;
-    fitted jointly both come out near the truth and the pair is kept (:mod:`finkensim.gap.selection`)."""
+    fitted jointly both come out near the truth and the pair is kept (:mod:`finkensim.gap.attribute.selection`)."""
     import zlib
-    from finkensim.gap.conventions import draw_conventions
+    from finkensim.gap.validation.conventions import draw_conventions
     conv = draw_conventions(np.random.default_rng([9, zlib.crc32(name.encode())]))
     logs, cfg, truth = generate(get_case(name), 9, n_flights=2, duration=30.0, conventions=conv)
     rep = run_diagnosis(Diagnosis(logs, ["a.npz", "b.npz"], cfg))
@@ -132,7 +132,7 @@ def test_a_noise_scale_beside_a_dominant_effect_is_measured_against_what_the_fir
     the cross-talk left. The bar is the latter, so both are named, the noise scale near its true factor (2.9)."""
     import zlib
     import numpy as np
-    from finkensim.gap.conventions import draw_conventions
+    from finkensim.gap.validation.conventions import draw_conventions
     name = "crosstalk_geometric+sonar_rayleigh_scale"
     conv = draw_conventions(np.random.default_rng([0, zlib.crc32(name.encode())]))
     assert conv.noise == "laplace"

@@ -11,10 +11,10 @@ from scipy import stats
 from finkensim.cli import main
 from finkensim.config import load_config
 from finkensim.flightlog import FlightLog
-from finkensim.gap import validate_sweep
-from finkensim.gap.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
-from finkensim.gap.validate import CASES, all_pairs, get_case, pair_case
-from finkensim.gap.validate_tables import confusion, exactly_withheld, pair_grid, wilson
+from finkensim.gap.validation import sweep as validate_sweep
+from finkensim.gap.validation.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
+from finkensim.gap.validation.cases import CASES, all_pairs, get_case, pair_case
+from finkensim.gap.validation.tables import confusion, exactly_withheld, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
@@ -62,7 +62,7 @@ def test_pair_grid_counts_each_pair_in_its_cell_and_the_pairs_that_reach_the_tar
     assert pair_grid([{"case": "null", "correct": True}]) == ""
     assert "1 of 2" in pair_grid(rows + [{"case": "wall_bulge+latency", "correct": False}])  # 4/5 < 90 %
 
-    from finkensim.gap.validate_plot import pair_grid_figure
+    from finkensim.gap.validation.plot import pair_grid_figure
 
     assert pair_grid_figure(rows, tmp_path / "pairs.png").stat().st_size > 5_000
     assert pair_grid_figure([{"case": "null", "correct": True}], tmp_path / "none.png") is None
@@ -70,7 +70,7 @@ def test_pair_grid_counts_each_pair_in_its_cell_and_the_pairs_that_reach_the_tar
 
 
 def test_case_lists_expand_pairs_once_and_in_order():
-    from finkensim.gap.validate import expand_cases
+    from finkensim.gap.validation.cases import expand_cases
 
     pairs = all_pairs()
     assert expand_cases(None) == list(CASES)
@@ -207,7 +207,7 @@ def test_process_workers_compute_on_one_thread():
     import os
     from concurrent.futures import ProcessPoolExecutor
 
-    from finkensim.gap.validate_sweep import _worker_init
+    from finkensim.gap.validation.sweep import _worker_init
 
     with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
                              initializer=_worker_init, initargs=(os.getpid(),)) as pool:

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from finkensim.config import ConfigError, load_config
-from finkensim.gap import effects as fx
-from finkensim.gap.model import ModelParams
+from finkensim.gap.attribute import effects as fx
+from finkensim.gap.model.params import ModelParams
 from finkensim.sensors.latency import (delay_buffer, delay_env, delay_reference, delayed_steps, lag_steps,
                                        sensor_lags)
 

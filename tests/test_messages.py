@@ -88,7 +88,7 @@ def _log(T: int, dt: float = 0.01, imu: bool = True) -> FlightLog:
 
 
 def test_sample_counts_are_pluralised():
-    from finkensim.gap.replay import GapInputError, prepare_flights
+    from finkensim.gap.model.replay import GapInputError, prepare_flights
 
     cfg = load_config(None)
     with pytest.raises(GapInputError) as info:
@@ -100,7 +100,7 @@ def test_sample_counts_are_pluralised():
 
 def test_a_log_shorter_than_the_imu_window_names_gap_imu_window():
     from finkensim.gap import Diagnosis
-    from finkensim.gap.replay import GapInputError
+    from finkensim.gap.model.replay import GapInputError
 
     cfg = load_config(None)
     with pytest.raises(GapInputError) as info:

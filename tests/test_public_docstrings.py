@@ -14,11 +14,11 @@ import finkensim as fs
 # The classes users subclass, build or call besides the lazy names of ``fs``, and the methods they call.
 CONTRACTS = {
     "finkensim.config.SimulationConfig": (),
-    "finkensim.gap.effects.Effect": ("start",),
-    "finkensim.gap.effects.Param": (),
-    "finkensim.gap.effects.register": (),
-    "finkensim.gap.diagnose.FitResult": (),
-    "finkensim.gap.diagnose.Diagnosis": ("fit", "score_heldout"),
+    "finkensim.gap.attribute.effects.Effect": ("start",),
+    "finkensim.gap.attribute.effects.Param": (),
+    "finkensim.gap.attribute.effects.register": (),
+    "finkensim.gap.diagnosis.FitResult": (),
+    "finkensim.gap.diagnosis.Diagnosis": ("fit", "score_heldout"),
     "finkensim.flightlog.npz.save": (),
 }
 

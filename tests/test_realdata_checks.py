@@ -14,13 +14,13 @@ from hypothesis import strategies as st
 
 from finkensim.config import Config
 from finkensim.flightlog import FlightLog, FlightLogError, validate
-from finkensim.gap import effects as fx
-from finkensim.gap.honesty import check_plausible, too_little_data
-from finkensim.gap.limits import range_limits
-from finkensim.gap.model import ModelParams
-from finkensim.gap.replay import synchronous_pairs
-from finkensim.gap.replay import GapInputError
-from finkensim.gap.report import bin_text, uniform_features
+from finkensim.gap.attribute import effects as fx
+from finkensim.gap.report.honesty import check_plausible, too_little_data
+from finkensim.gap.detect.limits import range_limits
+from finkensim.gap.model.params import ModelParams
+from finkensim.gap.model.replay import synchronous_pairs
+from finkensim.gap.model.replay import GapInputError
+from finkensim.gap.report.write import bin_text, uniform_features
 from finkensim.importing import Recording, RecordingError, build_flight, check_recording, read_csv, write_csv
 
 
@@ -169,8 +169,8 @@ def test_gap_command_names_readings_beyond_the_limit(tmp_path, capsys):
 def test_the_replays_ranging_table_uses_heights():
     """With the log's z, true_range (and the ideal draws) are 3-D centre distances; without it, horizontal ones; a
     slow pair's readings all stay in the table when the samples are strided."""
-    from finkensim.gap.predictive import RangingTable
-    from finkensim.gap.replay import prepare_flights
+    from finkensim.gap.model.predictive import RangingTable
+    from finkensim.gap.model.replay import prepare_flights
 
     log = _ranging_log(3.0)
     log.ranging[:] = np.nan

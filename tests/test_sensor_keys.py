@@ -54,8 +54,8 @@ def test_bad_values_get_named_errors(key, value, match):
 
 
 def test_the_gap_effect_imu_bias_changes_the_simulators_imu_record():
-    from finkensim.gap.effects import REGISTRY
-    from finkensim.gap.model import ModelParams
+    from finkensim.gap.attribute.effects import REGISTRY
+    from finkensim.gap.model.params import ModelParams
 
     base = ModelParams.from_config(fs.load_config().replace({"imu.gyro_bias": 0.01}))
     fitted = REGISTRY["imu_bias"].apply(base, {"acc_x": 0.1, "acc_y": -0.2, "gyro": 0.02})

@@ -112,7 +112,7 @@ def test_python_step_and_controlled_step_hold_like_the_compiled_rollout(held_fli
 def test_hold_rhythms_find_the_rate_and_phase_of_a_simulated_hold(held_flight):
     from types import SimpleNamespace
 
-    from finkensim.gap.fits import hold_rhythms
+    from finkensim.gap.attribute.fits import hold_rhythms
 
     cfg, log = held_flight                                  # 8 Hz, measuring from t = 0, at 100 Hz
     found = hold_rhythms([SimpleNamespace(log=log, dt=cfg.simulation.dt)], 0.0, 50.0)

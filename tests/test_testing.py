@@ -169,7 +169,7 @@ def test_sensor_models_run_in_their_kernels(kind, data):
 @MANY
 @given(fst.effects())
 def test_effects_apply_with_values_in_bounds(case):
-    from finkensim.gap.model import ModelParams
+    from finkensim.gap.model.params import ModelParams
 
     effect, values = case
     assert set(values) == {p.name for p in effect.params}
@@ -189,7 +189,7 @@ def _one(strategy):
 
 
 def _BASE_MODEL():
-    from finkensim.gap.model import ModelParams
+    from finkensim.gap.model.params import ModelParams
 
     if "base" not in _MODEL_CACHE:
         _MODEL_CACHE["base"] = ModelParams.from_config(Config())

@@ -3,15 +3,15 @@ effect explains it, and how far the gap shrinks once that effect is added.
 
 ``diagnose(logs, names, cfg)`` returns a :class:`GapReport`; :class:`Diagnosis` and :func:`run_diagnosis`
 split preparation (replay, tables, scales) from the search, so a notebook can register its own effects
-(:func:`finkensim.gap.effects.register`) and rerun the search on the same prepared data.
+(:func:`finkensim.gap.attribute.effects.register`) and rerun the search on the same prepared data.
 """
-from .diagnose import Diagnosis, check_heldout
-from .effects import Effect, Param, register
-from .model import ModelParams
-from .replay import GapInputError
-from .result import GapDetails, GapReport
+from .diagnosis import Diagnosis, check_heldout
+from .attribute.effects import Effect, Param, register
+from .model.params import ModelParams
+from .model.replay import GapInputError
+from .report.result import GapDetails, GapReport
 from .pipeline import diagnose
-from .selection import check_effects, run_diagnosis
+from .attribute.selection import check_effects, run_diagnosis
 
 __all__ = ["diagnose", "run_diagnosis", "Diagnosis", "GapReport", "GapDetails", "ModelParams", "Effect", "Param",
            "register", "GapInputError", "check_heldout", "check_effects"]

@@ -1,11 +1,11 @@
-"""The diagnosis end to end: prepare the logs (:class:`~finkensim.gap.diagnose.Diagnosis`: replay, tables, splits),
-then detect, attribute and quantify (:func:`~finkensim.gap.selection.run_diagnosis`) — ``fs.diagnose``."""
+"""The diagnosis end to end: prepare the logs (:class:`~finkensim.gap.diagnosis.Diagnosis`: replay, tables, splits),
+then detect, attribute and quantify (:func:`~finkensim.gap.attribute.selection.run_diagnosis`) — ``fs.diagnose``."""
 from __future__ import annotations
 
 from ..config import Config
-from .diagnose import Diagnosis
-from .result import GapReport
-from .selection import run_diagnosis
+from .diagnosis import Diagnosis
+from .report.result import GapReport
+from .attribute.selection import run_diagnosis
 
 __all__ = ["diagnose"]
 
@@ -35,7 +35,7 @@ def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None
     Returns
     -------
     GapReport
-        The report (:class:`~finkensim.gap.result.GapReport`; ``.to_spec()`` is the JSON document,
+        The report (:class:`~finkensim.gap.report.result.GapReport`; ``.to_spec()`` is the JSON document,
         ``.write(out)`` writes it with report.md and the figures).
 
     Raises
@@ -47,7 +47,7 @@ def diagnose(logs, names, cfg: Config | None = None, heldout=None, progress=None
     diag = Diagnosis(logs, names, cfg, heldout=heldout, progress=progress, limits=limits)
     report = run_diagnosis(diag, effect_names)
     if cfg.gap.param_intervals and report.details.added_params:
-        from .intervals import parameter_intervals
+        from .quantify.intervals import parameter_intervals
 
         diag.say("  bootstrap intervals of the fitted parameters")
         report.details.param_intervals = parameter_intervals(diag, report.details.added_params, diag.seed)

@@ -1,7 +1,7 @@
 """The learned correction as a sensor model: conditional quantiles of a reading's residual on a grid.
 
 When the effect catalogue leaves a gap, the diagnosis fits the distribution of the real reading around its model's
-median (:mod:`finkensim.gap.correction`). ``finkensim gap --out DIR`` exports it as a table, ``DIR/correction.json``,
+median (:mod:`finkensim.gap.quantify.correction`). ``finkensim gap --out DIR`` exports it as a table, ``DIR/correction.json``,
 referenced from ``calibrated.toml`` (``sonar.correction_file``), which the simulator applies to each reading:
 
     reading = clamp(ref + Q_g(u)),   ref = range_scale · d + bias (the echo without its error),

@@ -9,7 +9,7 @@ it, and show it until the next one; ``update_hz <= 0`` measures at every step (t
 One kernel, :func:`held_step` — the step whose measurement is shown at step k — is what both users call: the
 simulator's sense step (:func:`hold_env`: keep the held readings unless k is a measuring step) and the gap
 diagnosis (:func:`held_steps`: predict each reading from the poses at the step it was measured,
-``sonar_update_rate`` in :mod:`finkensim.gap.effects`). Times are measured from step 0 (``t = k · dt``).
+``sonar_update_rate`` in :mod:`finkensim.gap.attribute.effects`). Times are measured from step 0 (``t = k · dt``).
 """
 from __future__ import annotations
 

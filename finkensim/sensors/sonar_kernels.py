@@ -1,8 +1,8 @@
 """Per-environment sonar kernels: the one implementation of the ultrasonic sensor model.
 
 Every caller — the simulator's batched functions (:mod:`finkensim.sensors.ultrasonic`), the compiled
-closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.replay`,
-:mod:`finkensim.gap.predictive`) — computes sonar readings with these functions, fed by the same
+closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.model.replay`,
+:mod:`finkensim.gap.model.predictive`) — computes sonar readings with these functions, fed by the same
 :class:`~finkensim.sensors.sonar_model.SonarModel` record:
 
 - geometry: :func:`shifted_plates_env` / :func:`displaced_plates_env` (plate surfaces at flight height),

@@ -1,7 +1,7 @@
 """Calibration uncertainty in a sweep: ``calibration = "sample"`` draws each replicate's calibrated parameters.
 
 ``finkensim gap --out DIR`` writes ``DIR/calibrated.toml`` and, when the selected effects' parameters have bootstrap
-distributions (:mod:`finkensim.gap.intervals`), ``DIR/calibration_samples.json``: draws of every key the
+distributions (:mod:`finkensim.gap.quantify.intervals`), ``DIR/calibration_samples.json``: draws of every key the
 calibration set (format ``finkensim-calibration-samples``, version 1: ``{"samples": [{dotted key: value}, ...]}``).
 A sweep whose ``[base] config`` is that ``calibrated.toml`` and whose top level says ``calibration = "sample"``
 runs each replicate under one of those draws, chosen from (sweep seed, combination, replicate) alone, so a
@@ -22,7 +22,7 @@ from .checks import SweepError
 __all__ = ["CALIBRATION_MODES", "SAMPLES_FILE", "read_samples", "samples_for_base", "sample_for"]
 
 CALIBRATION_MODES = ("fixed", "sample")
-SAMPLES_FILE = "calibration_samples.json"  # the name finkensim.gap.calibrate writes
+SAMPLES_FILE = "calibration_samples.json"  # the name finkensim.gap.quantify.calibrate writes
 SAMPLES_FORMAT = "finkensim-calibration-samples"
 
 

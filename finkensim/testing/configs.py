@@ -4,7 +4,7 @@ that fly in a fraction of a second).
 Every range comes from the package's own declarations: the metadata of each field in :mod:`finkensim.config`
 (``lo``/``hi``/open ends, ``choices``, tuple ``length``), the profiles in :data:`~finkensim.config.PROFILES`, the
 sections registered in :data:`~finkensim.config.SECTIONS` (a section a plug-in registers is generated too) and
-the effect catalogue :data:`finkensim.gap.effects.REGISTRY` (``gap.effects``). Nothing is copied by hand, so a
+the effect catalogue :data:`finkensim.gap.attribute.effects.REGISTRY` (``gap.effects``). Nothing is copied by hand, so a
 range changed in ``config.py`` changes what is generated.
 
 Shrinking: each key is either left at its (profile) default or drawn, and "left at its default" is what
@@ -41,7 +41,7 @@ SCENARIO_BOUNDS: dict[str, tuple[float, float]] = {
 
 # strings without declared choices: where their valid values come from (others keep their default: a file
 # name such as ranging.mixture_file is not generated)
-_STRING_CHOICES = {"gap.effects": lambda: sorted(__import__("finkensim.gap.effects", fromlist=["REGISTRY"]).REGISTRY)}
+_STRING_CHOICES = {"gap.effects": lambda: sorted(__import__("finkensim.gap.attribute.effects", fromlist=["REGISTRY"]).REGISTRY)}
 
 _MAX_STEPS = 1e9  # most steps of a drawn flight (before the memory cap)
 _MAX_LATENCY_STEPS = 50  # most steps of a drawn sensor latency (its ring buffer holds that many readings)

@@ -67,7 +67,7 @@ def flight_logs(draw, *, n_steps=(1, 8), n_copters=(1, 4), sensors: Iterable[str
         sensors: the optional blocks present (subset of :data:`LOG_SENSORS`); default: any subset.
         n_sonars: S (as ``n_steps``); default 4 (front, left, back, right), or 1-6 with ``conventions``.
         missing: readings may be missing (NaN).
-        conventions: as imported logs from other tools and arenas write them (see ``finkensim.gap.conventions``):
+        conventions: as imported logs from other tools and arenas write them (see ``finkensim.gap.validation.conventions``):
             a clock with any origin and jittered steps, unwrapped yaw, any sonar layout and offset, a lost echo
             written as NaN, the maximum range or 0, tracking noise and a source in ``meta``, extra arrays, copter
             names of any text. Without: the simulator's own (t = k dt, yaw in [−π, π), four sonars at the centre).

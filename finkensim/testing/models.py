@@ -3,7 +3,7 @@ state a :class:`~finkensim.world.World` accepts), :func:`sensor_models` (the sen
 :func:`effects` (a catalogued gap effect with parameter values inside its declared bounds).
 
 Ranges come from the objects' own declarations: the config (arena, copter radius and speed, plate count), the
-effect's :class:`~finkensim.gap.effects.Param` bounds. Shrinking goes toward copters at rest in the arena's
+effect's :class:`~finkensim.gap.attribute.effects.Param` bounds. Shrinking goes toward copters at rest in the arena's
 lower-left region, plates hanging, and each effect's lower bounds.
 """
 from __future__ import annotations
@@ -137,11 +137,11 @@ def sensor_models(draw, kinds: Iterable[str] = SENSOR_KINDS, cfg=None):
 
 @st.composite
 def effects(draw, names: Iterable[str] | None = None, sensors: Iterable[str] | None = None):
-    """``(effect, values)``: a catalogued :class:`~finkensim.gap.effects.Effect` (from ``names``, default every
+    """``(effect, values)``: a catalogued :class:`~finkensim.gap.attribute.effects.Effect` (from ``names``, default every
     registered one, optionally only those touching one of ``sensors``) and a value for each of its parameters
     inside the parameter's bounds (whole numbers for integer parameters). ``effect.apply(base, values)`` is then
     a valid model."""
-    from ..gap.effects import REGISTRY
+    from ..gap.attribute.effects import REGISTRY
 
     pool = sorted(REGISTRY) if names is None else list(names)
     unknown = [n for n in pool if n not in REGISTRY]

@@ -21,19 +21,19 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..arena import Arena
-from ..config import Config
-from ..flightlog import FlightLog, heights
-from ..flightlog.messages import plural
-from ..world import walls_from_positions
-from ..kernels.geometry import point_segment_distance
-from ..kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
-from ..kernels.trig import sin_fast
-from ..sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
+from ...arena import Arena
+from ...config import Config
+from ...flightlog import FlightLog, heights
+from ...flightlog.messages import plural
+from ...world import walls_from_positions
+from ...kernels.geometry import point_segment_distance
+from ...kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
+from ...kernels.trig import sin_fast
+from ...sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
                                      sonar_poses_env, sonar_spread, store_ideal)
-from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
+from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
-from ..sensors.tracking import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
+from ...sensors.tracking import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
 
 
 class GapInputError(ValueError):
@@ -86,7 +86,7 @@ class Flight:
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)^shape)`` m,
         d its distance to the nearest copter body, followed with time constant ``response`` s (the
         ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0; hinge: the weight of the walls' own law,
-        :func:`~finkensim.gap.bulge.bulge_target`).
+        :func:`~finkensim.gap.model.bulge.bulge_target`).
 
         ``times`` (K,) int64 log indices: only the displacement at these samples is wanted (the others are zero,
         never read), so a bulge that follows at once (``response`` 0, each sample's own) is computed at them only

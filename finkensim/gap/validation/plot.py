@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .validate_tables import pair_count, pair_tally
+from .tables import pair_count, pair_tally
 
 __all__ = ["pair_grid_figure"]
 
@@ -19,7 +19,7 @@ def pair_grid_figure(rows: list[dict], path: str | Path, target: float = 0.9) ->
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from ..viz.png import save_png
+    from ...viz.png import save_png
 
     effects, tally = pair_tally(rows)
     if not tally:

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..sensors.correction_table import CorrectionTable
-from .scoring import brier, ensemble_terms
+from ...sensors.correction_table import CorrectionTable
+from ..model.scoring import brier, ensemble_terms
 
 __all__ = ["Correction", "fit_correction", "residual_table", "QUANTILES"]
 

@@ -1,13 +1,13 @@
 """The catalogue of candidate unmodelled effects, each a small plug-in.
 
 An :class:`Effect` names the sensors it changes, its parameters (bounds, integer or not), and
-how a set of parameter values modifies a :class:`~finkensim.gap.model.ModelParams`. The
+how a set of parameter values modifies a :class:`~finkensim.gap.model.params.ModelParams`. The
 diagnosis fits each effect's parameters on the training flights (minimising the mean CRPS of
 the sensors it touches) and measures it on held-out flights.
 
 Add your own in a notebook::
 
-    from finkensim.gap.effects import Effect, Param, register
+    from finkensim.gap.attribute.effects import Effect, Param, register
 
     register(Effect(
         name="sonar_offset_bias", sensors=("ultrasonic",),
@@ -20,7 +20,7 @@ features where the effect is expected to show up; only ``finkensim gap-validate`
 ``calibrate(values, cfg)`` (optional) returns the config updates (dotted keys) under which the simulator flies the
 fitted effect: ``ModelParams.from_config(cfg.replace(calibrate(v, cfg)))`` must equal ``apply(from_config(cfg), v)``
 (``tests/test_calibrate.py`` checks it for every catalogued effect that has one). An effect without it is not flown
-by the simulator yet; a calibrated config says so (:mod:`finkensim.gap.calibrate`).
+by the simulator yet; a calibrated config says so (:mod:`finkensim.gap.quantify.calibrate`).
 """
 from __future__ import annotations
 
@@ -28,11 +28,11 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
-from ..config import Config
+from ...config import Config
 
-from ..sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
+from ...sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
                                    SCHEDULE_SIMULTANEOUS)
-from .model import ModelParams
+from ..model.params import ModelParams
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ class Effect:
     params : tuple of Param
         Its parameters, with bounds and units.
     apply : callable
-        ``apply(base, values) -> ModelParams``: the base :class:`~finkensim.gap.model.ModelParams` with the
+        ``apply(base, values) -> ModelParams``: the base :class:`~finkensim.gap.model.params.ModelParams` with the
         effect added at ``values`` (parameter name → value); must be pure.
     doc : str
         One sentence for the report: what the effect is.
@@ -90,7 +90,7 @@ class Effect:
         Its parameters act on different sensors and are fitted one at a time.
     calibrate : callable, optional
         ``calibrate(values, cfg) -> updates``: the config updates (dotted keys) under which the simulator flies
-        the effect at ``values`` on top of ``cfg`` (:mod:`finkensim.gap.calibrate`); None = not flown yet.
+        the effect at ``values`` on top of ``cfg`` (:mod:`finkensim.gap.quantify.calibrate`); None = not flown yet.
     extra : dict
         Anything else; ``extra["fit"]`` replaces the generic fit: ``fit(diagnosis, effect, current, values)
         -> values``.

@@ -1,4 +1,4 @@
-"""The tables of a withheld-effect validation run (:mod:`finkensim.gap.validate`): the per-case summary with Wilson
+"""The tables of a withheld-effect validation run (:mod:`finkensim.gap.validation.cases`): the per-case summary with Wilson
 intervals and the confusion matrix (:func:`confusion`), the share naming exactly the withheld effects
 (:func:`exactly_withheld`), and the pair trials as an effect × effect grid
 (:func:`pair_grid`; :func:`pair_tally` / :func:`pair_count` also feed the figure of :mod:`.validate_plot`)."""
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from .validate import CASES
+from .cases import CASES
 
 __all__ = ["wilson", "withheld", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
 
@@ -50,7 +50,7 @@ def exactly_withheld(row: dict) -> bool:
     Parameters
     ----------
     row : dict
-        One row of ``trials.jsonl`` (:func:`~finkensim.gap.validate.run_case`).
+        One row of ``trials.jsonl`` (:func:`~finkensim.gap.validation.cases.run_case`).
 
     Returns
     -------

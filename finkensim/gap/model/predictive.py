@@ -3,7 +3,7 @@
 Each sensor has a table (:class:`SonarTable`, :class:`RangingTable`, :class:`ImuTable`) of the real
 readings with their identity (flight, time, copter, channel), context features, and a
 ``draws(params, rows)`` method returning the predictive ensemble (len(rows), M) of those readings under
-a :class:`~finkensim.gap.model.ModelParams`. Ideal values come from the replay kernels (pose draws);
+a :class:`~finkensim.gap.model.params.ModelParams`. Ideal values come from the replay kernels (pose draws);
 errors from the simulator's own sensor models, with counter-based random numbers keyed by the reading and
 the draw index, so a refit with other parameters reuses the same numbers.
 """
@@ -15,13 +15,13 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..config import Config
-from ..sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
+from ...config import Config
+from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
-from ..sensors.sonar_hold import held_steps
-from ..sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
-from .model import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
+from ...sensors.sonar_hold import held_steps
+from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
+from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
 
 # --------------------------------------------------------------------------------------- tables
@@ -369,7 +369,7 @@ class ImuTable(Table):
     Extra per-row arrays: ``bias_gain`` (n, 2) maps a body-frame accelerometer bias (b_x, b_y)
     onto the row's channel (Σ w_j R(ψ_j) dt_j row), ``window_s`` (n,) the window length in s and ``noise_s``
     (n,) Σ w_j² dt_j s (white-noise variance per unit density²). The accelerometer integrals carry trapezoid
-    weights w_j (see :func:`~finkensim.gap.replay.imu_window_draws`) so that the pose side can use mean
+    weights w_j (see :func:`~finkensim.gap.model.replay.imu_window_draws`) so that the pose side can use mean
     velocities over ``gap.imu_velocity_baseline`` instead of single-step differences of noisy poses.
     """
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..arena import amplitude_law
+from ...arena import amplitude_law
 
 
 def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, shape: float = 2.0,
@@ -17,7 +17,7 @@ def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, sha
 
     hinge 0 (the default) is the ``wall_bulge`` effect's catalogue law, hinge 1 the law the project's own walls follow
     (a hinge driven toward ``maxAmplitude·f(x)``, x = (threshold − d)/threshold); the family in between is the
-    flexible version a catch-all must beat before it is named beside a bulge (:mod:`finkensim.gap.parsimony`).
+    flexible version a catch-all must beat before it is named beside a bulge (:mod:`finkensim.gap.attribute.parsimony`).
 
     Parameters
     ----------

@@ -13,7 +13,7 @@ import math
 
 __all__ = ["STATED", "stated_floor", "stated_excess", "stated_fields"]
 
-#: effect name → parameter name → the :class:`~finkensim.gap.replay.Flight` attribute holding what its log states
+#: effect name → parameter name → the :class:`~finkensim.gap.model.replay.Flight` attribute holding what its log states
 STATED = {"pose_noise": {"sigma_xy": "sigma_xy", "sigma_yaw": "sigma_yaw"}}
 
 
@@ -24,7 +24,7 @@ def stated_floor(flights, effect_name: str) -> dict[str, float]:
     Parameters
     ----------
     flights : list of Flight
-        The diagnosis's flights (:func:`~finkensim.gap.replay.prepare_flights`).
+        The diagnosis's flights (:func:`~finkensim.gap.model.replay.prepare_flights`).
     effect_name : str
         A catalogued effect's name.
 

@@ -1,11 +1,11 @@
 """The catalogue's radio effects: each one part of the simulator's ranging kernel (:mod:`finkensim.sensors.ranging_radio`).
 
-Every entry changes the ``ranging`` record of a :class:`~finkensim.gap.model.ModelParams` through
-:meth:`~finkensim.gap.model.ModelParams.with_ranging` and is flown by the simulator through the ``[ranging]`` config
-keys of the same names (``calibrate``). Registered when :mod:`finkensim.gap.effects` is imported:
+Every entry changes the ``ranging`` record of a :class:`~finkensim.gap.model.params.ModelParams` through
+:meth:`~finkensim.gap.model.params.ModelParams.with_ranging` and is flown by the simulator through the ``[ranging]`` config
+keys of the same names (``calibrate``). Registered when :mod:`finkensim.gap.attribute.effects` is imported:
 
 - (``ranging_nlos``, near a third copter, and ``ranging_dropout``, vs distance, are registered in
-  :mod:`finkensim.gap.effects` in their old place of the catalogue, flown the same way);
+  :mod:`finkensim.gap.attribute.effects` in their old place of the catalogue, flown the same way);
 - ``ranging_bias`` (a constant offset, m), ``ranging_scale`` (a clock-rate factor);
 - ``ranging_antenna_offset``: the tag's (x, y) position in the body frame, shared by every copter;
 - ``ranging_node_delay``: a constant per node (``delay_k`` for node k = copter k of the log; a pair reads the sum),
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import Config
+from ...config import Config
 from .effects import Effect, Param, register
-from .model import ModelParams
+from ..model.params import ModelParams
 
 __all__ = ["MAX_DELAY_NODES", "fit_node_delay", "node_delays"]
 

@@ -4,7 +4,7 @@ For every selected effect (in the order the selection added it, on top of the on
 parameters, the training score is evaluated on a grid of values around the fit (the rest of the model at its
 fitted values): :data:`GRID` points spread over the parameter's bounds plus :data:`GRID` points within
 ±:data:`LOCAL` of its range around the fitted value. Each block-bootstrap replicate of the training readings
-(:class:`~finkensim.gap.stats.BlockBootstrap`, the blocks the diagnosis tests with) picks the grid value with the
+(:class:`~finkensim.gap.detect.stats.BlockBootstrap`, the blocks the diagnosis tests with) picks the grid value with the
 best weighted score; the picks over the replicates are the parameter's distribution (grid values and their
 probabilities), their 2.5 and 97.5 % quantiles its interval. This is a profile bootstrap: the other parameters
 stay at their fit, so correlated parameters get intervals that are too narrow rather than too wide.
@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import effects as fx
-from .diagnose import SENSORS
-from .stats import BlockBootstrap
+from ..attribute import effects as fx
+from ..diagnosis import SENSORS
+from ..detect.stats import BlockBootstrap
 
 __all__ = ["parameter_intervals", "GRID", "LOCAL", "N_BOOT"]
 
@@ -86,7 +86,7 @@ def _vertices(grid: np.ndarray, reps: np.ndarray, value: float, prm) -> np.ndarr
 def parameter_intervals(diag, added_params: dict, seed: int = 0) -> dict:
     """{effect: {parameter: {value, lo, hi, unit, values, probabilities}}} for the selected effects
     ``added_params`` (effect → fitted values, in the order they were added) of the diagnosis ``diag``
-    (:class:`~finkensim.gap.diagnose.Diagnosis`); an effect or parameter without training readings is left out."""
+    (:class:`~finkensim.gap.diagnosis.Diagnosis`); an effect or parameter without training readings is left out."""
     out = {}
     current = diag.base
     for name, values in added_params.items():

@@ -1,14 +1,14 @@
 """A calibrated scenario out of a diagnosis: the diagnosed config plus every selected effect the simulator can fly.
 
 The diagnosis names effects and fits their parameters against its predictive model; the simulator flies the same
-effects through config keys (each catalogued :class:`~finkensim.gap.effects.Effect` with a ``calibrate`` mapping
+effects through config keys (each catalogued :class:`~finkensim.gap.attribute.effects.Effect` with a ``calibrate`` mapping
 says which). :func:`calibrated_config` applies the selected effects in the order the selection added them, each on
 top of the config the previous ones produced (as the diagnosis applied them to its model), and
 :func:`calibrated_toml` writes the result as a scenario file that ``finkensim run``, ``sweep`` and ``tune`` read as
 it is, with a comment at each key an effect set (which effect, its fitted parameters, its held-out shrink).
 
 A selected effect without a ``calibrate`` mapping, or fitted with a parameter beyond the catalogue's (the flexible
-refit's hinge-law weight of ``wall_bulge``, :mod:`finkensim.gap.parsimony`) away from 0, is not flown by the simulator
+refit's hinge-law weight of ``wall_bulge``, :mod:`finkensim.gap.attribute.parsimony`) away from 0, is not flown by the simulator
 yet: the file lists it in its header and :func:`calibration` marks it ``flown=False``.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..atomic import write_text_atomic
-from ..config import Config
-from . import effects as fx
+from ...atomic import write_text_atomic
+from ...config import Config
+from ..attribute import effects as fx
 
 __all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "calibration_samples",
            "correction_tables", "write_calibrated", "SAMPLES_FILE"]
@@ -30,7 +30,7 @@ class CalibratedEffect:
     """One selected effect: its fitted ``params``, the config ``updates`` (dotted key → value) that fly it, whether
     the simulator flies it (``flown``), its held-out shrink alone (``shrink_heldout``, NaN if unknown) and its
     parameters' bootstrap distributions (``intervals``: parameter → {value, lo, hi, unit, values, probabilities},
-    :mod:`finkensim.gap.intervals`; empty when not computed)."""
+    :mod:`finkensim.gap.quantify.intervals`; empty when not computed)."""
 
     name: str
     params: dict
@@ -56,7 +56,7 @@ def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, li
     for name, params in report.details.added_params.items():
         effect = fx.REGISTRY.get(name)
         iv = dict(intervals.get(name, {}))
-        # a parameter beyond the catalogue's (the flexible refit's hinge-law weight of wall_bulge, gap/parsimony.py)
+        # a parameter beyond the catalogue's (the flexible refit's hinge-law weight of wall_bulge, gap/attribute/parsimony.py)
         # away from its neutral 0 is a model the simulator cannot fly yet: the effect is listed as not flown
         beyond = {k: v for k, v in params.items() if effect is not None and k not in {p.name for p in effect.params}
                   and v != 0}
@@ -79,7 +79,7 @@ def correction_tables(report) -> dict:
 
 
 def calibration(report) -> list[CalibratedEffect]:
-    """The selected effects of ``report`` (a :class:`~finkensim.gap.result.GapReport` of this session), in the
+    """The selected effects of ``report`` (a :class:`~finkensim.gap.report.result.GapReport` of this session), in the
     order the selection added them, with the config updates that fly each."""
     return _walk(report)[1]
 
@@ -192,7 +192,7 @@ def write_calibrated(report, path: str | Path) -> Path:
     """Write :func:`calibrated_toml` to ``path`` atomically; returns the path. With a learned correction of the
     sonars, its table goes beside it as ``correction.json`` (:mod:`finkensim.sensors.correction_table`),
     referenced from the config by its absolute path."""
-    from ..sensors.correction_table import write_correction
+    from ...sensors.correction_table import write_correction
 
     path = Path(path)
     tables = correction_tables(report)

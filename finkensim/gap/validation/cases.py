@@ -22,13 +22,13 @@ from typing import Callable
 
 import numpy as np
 
-from ..config import Config, load_config
-from ..flightlog import FlightLog
-from ..scenario import simulate_flight
+from ...config import Config, load_config
+from ...flightlog import FlightLog
+from ...scenario import simulate_flight
 from .conventions import DEFAULT_CONVENTIONS, Conventions, draw_conventions
-from .diagnose import Diagnosis
-from .selection import run_diagnosis
-from .effects import REGISTRY
+from ..diagnosis import Diagnosis
+from ..attribute.selection import run_diagnosis
+from ..attribute.effects import REGISTRY
 
 
 BASE_UPDATES = {"walls.bending": False, "sonar.crosstalk": "off", "sonar.error": "rayleigh", "sonar.sigma": 0.05,
@@ -239,7 +239,7 @@ def base_config(updates: dict | None = None) -> Config:
 def generate(case: Case, seed: int, n_flights: int = 2, duration: float = 60.0, n_copters: int | None = None,
              conventions: Conventions | None = None, flights_from: int = 0):
     """Simulated "real" flights with the case's effect at a random strength, recorded in ``conventions``
-    (default :data:`~finkensim.gap.conventions.DEFAULT_CONVENTIONS`; ``n_copters`` overrides its swarm size).
+    (default :data:`~finkensim.gap.validation.conventions.DEFAULT_CONVENTIONS`; ``n_copters`` overrides its swarm size).
 
     Returns (logs, base config for the diagnosis, truth dict). Poses carry the conventions' tracking noise
     (declared in meta) unless the case is ``pose_noise``, whose noise is larger than declared. For

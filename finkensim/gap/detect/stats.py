@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scoring import normal_sf
+from ..model.scoring import normal_sf
 
 MIN_BLOCKS = 20
 

@@ -50,19 +50,19 @@ class GapDetails:
     'unexplained' only when the shrink is under ``unexplained_shrink`` and some remainder is significant); calibration_gap, calibration_ci: the
     held-out mean of E|X − y| − E|X − X'| (zero-mean when the logs could have come from the model; the
     significance test) and its CI; best_score: the best held-out score of any predictive built (the
-    reference of the score term of the shrink, :mod:`~finkensim.gap.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
-    score; correction: the fitted :class:`~finkensim.gap.correction.Correction` or None; targeted: when the omnibus
-    test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.selection.run_diagnosis`),
+    reference of the score term of the shrink, :mod:`~finkensim.gap.quantify.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
+    score; correction: the fitted :class:`~finkensim.gap.quantify.correction.Correction` or None; targeted: when the omnibus
+    test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.attribute.selection.run_diagnosis`),
     {effect, sensors, improvement, ci, p, threshold, passed}, else None; correction_skipped: sensor (or "all") →
     why no correction was fitted although the verdict is unexplained; limit_notes: sensor → range limit taken from
-    the logs (:mod:`~finkensim.gap.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:
-    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.honesty`); residuals: per location
+    the logs (:mod:`~finkensim.gap.detect.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:
+    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.report.honesty`); residuals: per location
     (same order), the median of reading − model median in the sensor's unit (m for ultrasonic and ranging);
-    at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.effects.at_bound`);
+    at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.attribute.effects.at_bound`);
     added_params: effect → its fitted parameters in the final selection (after any joint refit); config: the
     diagnosed :class:`~finkensim.config.Config` (what :meth:`GapReport.calibrated_config` starts from);
     param_intervals: effect → parameter → its bootstrap distribution and interval
-    (:func:`~finkensim.gap.intervals.parameter_intervals`; empty with ``gap.param_intervals = false``).
+    (:func:`~finkensim.gap.quantify.intervals.parameter_intervals`; empty with ``gap.param_intervals = false``).
     """
 
     gap_before_ci: list = field(default_factory=lambda: [math.nan, math.nan])
@@ -169,15 +169,15 @@ class GapReport:
 
     def calibrated_config(self):
         """The diagnosed config plus every selected effect the simulator can fly, at its fitted parameters (a
-        :class:`~finkensim.config.Config`; :func:`finkensim.gap.calibrate.calibration` says which effects are not
+        :class:`~finkensim.config.Config`; :func:`finkensim.gap.quantify.calibrate.calibration` says which effects are not
         flown yet)."""
-        from .calibrate import calibrated_config
+        from ..quantify.calibrate import calibrated_config
 
         return calibrated_config(self)
 
     def write(self, out: str | Path, max_locations_md: int = 15) -> dict[str, Path]:
         """Write report.json, report.md, the figures and, when the diagnosed config is known, calibrated.toml
-        (:mod:`finkensim.gap.calibrate`) into directory ``out``.
+        (:mod:`finkensim.gap.quantify.calibrate`) into directory ``out``.
 
         Parameters
         ----------
@@ -191,8 +191,8 @@ class GapReport:
         dict of str to Path
             Every file written, by kind.
         """
-        from .calibrate import write_calibrated
-        from .report import write_report
+        from ..quantify.calibrate import write_calibrated
+        from .write import write_report
 
         paths = write_report(self, out, max_locations_md)
         if self.details.config is not None:

@@ -15,8 +15,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..flightlog import FlightLog
-from ..sensors.sonar_hold import held_steps
+from ...flightlog import FlightLog
+from ...sensors.sonar_hold import held_steps
 
 __all__ = ["Conventions", "draw_conventions", "DEFAULT_CONVENTIONS", "NO_ECHO", "NOISE"]
 

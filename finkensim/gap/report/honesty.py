@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from . import effects as fx
-from .replay import GapInputError
+from ..attribute import effects as fx
+from ..model.replay import GapInputError
 
 __all__ = ["MAX_PLAUSIBLE_GAP", "MIN_HELDOUT_READINGS", "MIN_BLOCKS", "check_plausible", "sample_sizes",
            "too_little_data", "flag_bounds"]

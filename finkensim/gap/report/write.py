@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_text_atomic
-from ..viz.png import save_png
-from .diagnose import MIN_BIN_READINGS
+from ...atomic import write_text_atomic
+from ...viz.png import save_png
+from ..diagnosis import MIN_BIN_READINGS
 from .result import SPEC_KEYS, GapReport
 
 __all__ = ["SPEC_KEYS", "spec_report", "write_report", "markdown", "write_figures"]

@@ -6,7 +6,7 @@ mismatch, and the report names a tracking system and a sonar that are fine. So o
 catch-all beside a structured effect on a shared sensor, :func:`earn_place` takes each such catch-all out (the last
 added first), refits the structured effect with a more flexible version of itself on top of the rest
 (:func:`flexible_version`: the bulge's law blended with the walls' own polynomial hinge law,
-:func:`~finkensim.gap.bulge.bulge_target`), and keeps the catch-all only when the selection with it still beats that
+:func:`~finkensim.gap.model.bulge.bulge_target`), and keeps the catch-all only when the selection with it still beats that
 model by the bar of a further effect, the structured effect refitted flexibly with the catch-all in place too (the selection's rule: an improvement of the held-out score of at least
 ``gap.accept_improvement`` in units of the typical error of the model without it, with a p-value under ``gap.alpha``
 / the number of candidates). The catch-all keeps its fitted value and the bulge is refitted around it (a catch-all
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effects as fx
-from .diagnose import FitResult
+from ..diagnosis import FitResult
 from .fits import nelder_mead
 
 __all__ = ["flexible_version", "earn_place", "Earned"]
@@ -47,7 +47,7 @@ def flexible_version(name: str) -> fx.Effect | None:
     """The more flexible version of the catalogued effect ``name`` (same name, one more parameter), or None.
 
     ``wall_bulge``: its four parameters plus ``hinge`` in [0, 1], the weight of the walls' own polynomial amplitude
-    law (:func:`~finkensim.gap.bulge.bulge_target`; 0 is the catalogue's law, 1 the hinge law with ``reach`` as its
+    law (:func:`~finkensim.gap.model.bulge.bulge_target`; 0 is the catalogue's law, 1 the hinge law with ``reach`` as its
     threshold).
 
     Parameters

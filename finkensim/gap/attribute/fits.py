@@ -1,7 +1,7 @@
 """Parameter searches of the diagnosis: a bounded Nelder–Mead, a joint fit of several effects, and the effects'
 own fits.
 
-Each custom fit ``fit(diag, effect, current, vals) -> vals`` takes a :class:`~finkensim.gap.diagnose.Diagnosis`
+Each custom fit ``fit(diag, effect, current, vals) -> vals`` takes a :class:`~finkensim.gap.diagnosis.Diagnosis`
 (its ``_objective``, ``_fit_group``, tables and training rows), the effect, the model it is fitted on top of and
 the starting values, and returns the fitted values by parameter name.
 """
@@ -17,7 +17,7 @@ from scipy import optimize
 from .stated import stated_floor
 
 if TYPE_CHECKING:
-    from .diagnose import Diagnosis
+    from ..diagnosis import Diagnosis
 
 
 def nelder_mead(f, vals, group, x0, f0, maxfev=40):
@@ -123,7 +123,7 @@ def _fit_dropout(diag: "Diagnosis", effect, current, vals):
 def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
     coarse grid, then refined by a bounded scalar search between the best point's grid neighbours; never below the
-    noise the logs state (:func:`~finkensim.gap.stated.stated_floor`: a best below it is searched again between the
+    noise the logs state (:func:`~finkensim.gap.attribute.stated.stated_floor`: a best below it is searched again between the
     stated value and the next grid point)."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     sx0 = current.sigma_xy if current.sigma_xy is not None else float(np.mean([f.sigma_xy for f in diag.flights]))

@@ -17,14 +17,14 @@ import time
 import numpy as np
 
 from . import effects as fx
-from .correction import fit_correction
-from .diagnose import Diagnosis, FitResult
+from ..quantify.correction import fit_correction
+from ..diagnosis import Diagnosis, FitResult
 from .fits import joint_fit
-from .honesty import check_plausible, flag_bounds, sample_sizes, too_little_data
+from ..report.honesty import check_plausible, flag_bounds, sample_sizes, too_little_data
 from .parsimony import earn_place
-from .replay import GapInputError
-from .result import GapDetails, GapReport
-from .shrink import ShrinkMeter
+from ..model.replay import GapInputError
+from ..report.result import GapDetails, GapReport
+from ..quantify.shrink import ShrinkMeter
 from .stated import stated_fields
 
 __all__ = ["run_diagnosis", "check_effects"]
@@ -43,7 +43,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
 
     effect_names: the candidate effects (default ``gap.effects``, else the whole catalogue); at most
     ``max_added`` effects are selected, each step refitting on top of what was added every remaining effect
-    on a sensor with a significant gap (and up to ``refit_top`` in all). Returns a :class:`~finkensim.gap.result.GapReport`."""
+    on a sensor with a significant gap (and up to ``refit_top`` in all). Returns a :class:`~finkensim.gap.report.result.GapReport`."""
     cfg = diag.cfg.gap
     t0 = time.perf_counter()
     names = list(effect_names if effect_names is not None else (cfg.effects or fx.REGISTRY))
@@ -213,7 +213,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                     and second_matters(pair, len(first))):
                 added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint lead pair")
 
-    # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/parsimony.py)
+    # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/attribute/parsimony.py)
     earned = earn_place(diag, added, improvement, further_bar, max(1, len(first) - 1), evaluated, lambda a, b: max(
         _share(a.rows_gap, b.rows_gap, gap_sensors, per_sensor), _share(a.rows_score, b.rows_score, gap_sensors,
                                                                           per_sensor))) if (
@@ -416,7 +416,7 @@ def _joint_refit(diag, added):
 
 def _pair_second_chance(diag, first_added, first, evaluated):
     """When the greedy selection leaves the gap unexplained: the first selected effect fitted jointly
-    (:func:`~finkensim.gap.fits.joint_fit`) with each other first-round candidate on one of its sensors; returns
+    (:func:`~finkensim.gap.attribute.fits.joint_fit`) with each other first-round candidate on one of its sensors; returns
     the best pair's chain of FitResults (scored on the held-out flights), or None. Each pair's held-out rows are
     appended to ``evaluated``."""
     a = fx.REGISTRY[first_added.name]

@@ -13,8 +13,8 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable, Iterator
 
-from ..atomic import write_text_atomic
-from .validate import run_case
+from ...atomic import write_text_atomic
+from .cases import run_case
 
 __all__ = ["trial_key", "load_done", "run_trials"]
 
@@ -45,7 +45,7 @@ def _worker_init(parent_pid: int) -> None:
 
     import numba
 
-    from ..sweep.executors import die_with_parent
+    from ...sweep.executors import die_with_parent
 
     die_with_parent(parent_pid)
     numba.set_num_threads(1)
@@ -61,7 +61,7 @@ def _worker_init(parent_pid: int) -> None:
 def _one(job: tuple) -> dict:
     case, seed, flights, duration, conventions, *calibrate = job
     if calibrate and calibrate[0]:  # gap-validate --calibrate
-        from .validate_calibrate import run_calibrated_case
+        from .calibrated import run_calibrated_case
 
         row = run_calibrated_case(case, seed, n_flights=flights, duration=duration,
                                   conventions="random" if conventions == "random" else None)
@@ -96,7 +96,7 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
                 for proc in procs:
                     proc.terminate()
         return
-    from ..sweep.executors import dask_client
+    from ...sweep.executors import dask_client
     from distributed import as_completed as dask_completed
 
     client, cluster = dask_client(workers, scheduler)
@@ -114,7 +114,7 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
                progress: Callable | None = None, calibrate: bool = False) -> list[dict]:
     """Every (case, trial) row, running those not already in ``out/trials.jsonl``; trial-major order so an
     interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``;
-    calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validate_calibrate`; keep
+    calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validation.calibrated`; keep
     its rows in their own ``out``)."""
     log_path = Path(out) / "trials.jsonl"
     done = load_done(log_path)
@@ -136,8 +136,8 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
 
 def summarize(out: Path) -> str:
     """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not; with pair trials also
-    their effect × effect grid (:func:`~finkensim.gap.validate_tables.pair_grid`)."""
-    from .validate_tables import confusion, pair_grid
+    their effect × effect grid (:func:`~finkensim.gap.validation.tables.pair_grid`)."""
+    from .tables import confusion, pair_grid
 
     rows = list(load_done(Path(out) / "trials.jsonl").values())
     if not rows:
@@ -146,7 +146,7 @@ def summarize(out: Path) -> str:
     return confusion(rows)[1] + ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid if grid else "")
 
 
-if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT [--figure PNG]: the matrix of a run so far
+if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [--figure PNG]: the matrix of a run so far
     import argparse
 
     ap = argparse.ArgumentParser(description="The matrix of a gap-validate run (finished or not) from OUT/trials.jsonl")
@@ -155,6 +155,6 @@ if __name__ == "__main__":  # python -m finkensim.gap.validate_sweep OUT [--figu
     args = ap.parse_args()
     print(summarize(Path(args.out)), end="")
     if args.figure:
-        from .validate_plot import pair_grid_figure
+        from .plot import pair_grid_figure
 
         print(pair_grid_figure(list(load_done(Path(args.out) / "trials.jsonl").values()), args.figure))

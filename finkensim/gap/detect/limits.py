@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from ..flightlog.messages import fmt
-from .replay import GapInputError
+from ...flightlog.messages import fmt
+from ..model.replay import GapInputError
 
 __all__ = ["LIMIT_MODES", "range_limits", "MAX_SHARE"]
 

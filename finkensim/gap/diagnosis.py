@@ -26,16 +26,16 @@ from scipy import optimize
 from ..budget import check_memory, gap_arrays
 from ..config import Config
 from ..flightlog import FlightLog
-from . import effects as fx
+from .attribute import effects as fx
 from ..sensors.sonar_model import ERROR_NONE
-from .censoring import detect_censoring
-from .fits import CUSTOM_FITS, nelder_mead
-from .limits import range_limits
-from .model import ModelParams
-from .predictive import LRU, ImuTable, RangingTable, SonarTable
-from .replay import GapInputError, prepare_flights
-from .scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
-from .stats import BlockBootstrap, fdr_significant
+from .detect.censoring import detect_censoring
+from .attribute.fits import CUSTOM_FITS, nelder_mead
+from .detect.limits import range_limits
+from .model.params import ModelParams
+from .model.predictive import LRU, ImuTable, RangingTable, SonarTable
+from .model.replay import GapInputError, prepare_flights
+from .model.scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
+from .detect.stats import BlockBootstrap, fdr_significant
 
 SENSORS = ("ultrasonic", "ranging", "imu")
 #: a location (one bin of one feature) needs at least this many readings

@@ -6,7 +6,7 @@ that only a diagnosis turns.
 exactly as the simulator builds them from the same config (one source of defaults and codes), plus
 the world and recording effects a log can show that the simulator does not model (tracking noise,
 wall-displacement gain, latency, ranging NLOS and dropout, constant IMU biases). Effects
-(:mod:`finkensim.gap.effects`) return modified copies; ``sensor_key`` makes the parts a sensor depends on
+(:mod:`finkensim.gap.attribute.effects`) return modified copies; ``sensor_key`` makes the parts a sensor depends on
 hashable so that scores can be cached per sensor.
 
 The sonar reading draws call :func:`~finkensim.sensors.sonar_kernels.measured_reading`, the simulator's
@@ -21,15 +21,15 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 from numba import njit, prange
 
-from ..config import Config
-from ..kernels.rng import STREAM_CORRECTION, STREAM_EFFECT, counter_key, normal, uniform
-from ..sensors.correction_table import correction_quantile
-from ..sensors.imu import ImuModel
-from ..sensors.latency import lag_steps
-from ..sensors.ranging import RangingModel
-from ..kernels.raycast import HIT_NONE
-from ..sensors.sonar_kernels import echo_error, measured_reading
-from ..sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
+from ...config import Config
+from ...kernels.rng import STREAM_CORRECTION, STREAM_EFFECT, counter_key, normal, uniform
+from ...sensors.correction_table import correction_quantile
+from ...sensors.imu import ImuModel
+from ...sensors.latency import lag_steps
+from ...sensors.ranging import RangingModel
+from ...kernels.raycast import HIT_NONE
+from ...sensors.sonar_kernels import echo_error, measured_reading
+from ...sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
 __all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
 
@@ -51,8 +51,8 @@ class ModelParams:
     are the ``ranging`` record's own (:meth:`with_ranging`, :mod:`finkensim.sensors.ranging_radio`). Constant IMU biases are fields of the ``imu`` record
     (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
     bulge_hinge in [0, 1]: the weight of the walls' own polynomial law in the bulge's target
-    (:func:`~finkensim.gap.bulge.bulge_target`; 0 = the catalogue's law, set only by the flexible refit of
-    :mod:`finkensim.gap.parsimony`).
+    (:func:`~finkensim.gap.model.bulge.bulge_target`; 0 = the catalogue's law, set only by the flexible refit of
+    :mod:`finkensim.gap.attribute.parsimony`).
     """
 
     sonar: SonarModel

@@ -1,7 +1,7 @@
 """Proof that the loop closes (``finkensim gap-validate --calibrate``): diagnose, calibrate, diagnose new flights.
 
-Each trial runs the withheld-effect case as :func:`~finkensim.gap.validate.run_case` does, writes the calibrated
-config of its report (:func:`~finkensim.gap.calibrate.write_calibrated`, with the learned correction's table when
+Each trial runs the withheld-effect case as :func:`~finkensim.gap.validation.cases.run_case` does, writes the calibrated
+config of its report (:func:`~finkensim.gap.quantify.calibrate.write_calibrated`, with the learned correction's table when
 the verdict is unexplained), then generates *new* "real" flights of the same truth (the same case and seed, so the
 same effect at the same strength, other flight seeds) and diagnoses them against the calibrated config. The row
 gains ``calibrated_significant`` (a significant gap remains), ``calibrated_gap`` (the new held-out gap) and
@@ -17,19 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import load_config
-from .calibrate import write_calibrated
-from .diagnose import Diagnosis
-from .selection import run_diagnosis
-from .validate import generate, get_case, run_case
-from .validate_tables import wilson
+from ...config import load_config
+from ..quantify.calibrate import write_calibrated
+from ..diagnosis import Diagnosis
+from ..attribute.selection import run_diagnosis
+from .cases import generate, get_case, run_case
+from .tables import wilson
 
 __all__ = ["run_calibrated_case", "calibrated_table"]
 
 
 def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: float = 60.0, n_copters=None,
                         conventions=None) -> dict:
-    """One trial of ``name`` (:func:`~finkensim.gap.validate.run_case`'s row) plus its calibrated re-diagnosis on
+    """One trial of ``name`` (:func:`~finkensim.gap.validation.cases.run_case`'s row) plus its calibrated re-diagnosis on
     ``n_flights`` new flights of the same truth."""
     keep: dict = {}
     row = run_case(name, seed, n_flights=n_flights, duration=duration, n_copters=n_copters, conventions=conventions,
