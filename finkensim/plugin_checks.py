@@ -12,6 +12,7 @@ registered plug-in through them; run them on your own before registering it::
 """
 from __future__ import annotations
 
+import inspect
 import pickle
 
 import numpy as np
@@ -242,6 +243,21 @@ def _keys(model) -> dict:
     return {sensor: model.sensor_key(sensor) for sensor in EFFECT_SENSORS}
 
 
+def _check_effect_fit(name: str, fit) -> None:
+    """An effect's own fit takes (objective, effect, current, values) positionally."""
+    if not callable(fit):
+        _fail(name, f"fit = {fit!r}: expected None or a callable fit(objective, effect, current, values) -> values")
+    try:
+        signature = inspect.signature(fit)
+    except (TypeError, ValueError):
+        return  # a builtin without a signature: nothing to judge
+    try:
+        signature.bind(None, None, None, None)
+    except TypeError as e:
+        _fail(name, f"fit{signature} cannot be called as fit(objective, effect, current, values) ({e}): expected "
+                    "four positional parameters")
+
+
 def check_effect(effect, cfg: Config | None = None) -> None:
     """Check an effect of the gap diagnosis against its contract (:class:`~finkensim.gap.attribute.effects.Effect`).
 
@@ -249,7 +265,9 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     bounds (or at the neutral 0); at the starting values the model is the base model (neutral parameters change
     nothing); at the bounds and inside them ``apply`` returns a :class:`~finkensim.gap.model.params.ModelParams`, changes no
     sensor the effect does not name, leaves the base model as it was and gives the same model twice (pure); with a
-    ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor.
+    ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor; an own
+    ``fit`` is callable as ``fit(objective, effect, current, values)``
+    (:data:`~finkensim.gap.attribute.objective.EffectFit`).
 
     Parameters
     ----------
@@ -307,6 +325,8 @@ def check_effect(effect, cfg: Config | None = None) -> None:
                             f"(sensors = {effect.sensors})")
         if _keys(effect.apply(base, values)) != got:
             _fail(name, f"apply at {values} gave two different models: expected a pure function")
+    if effect.fit is not None:
+        _check_effect_fit(name, effect.fit)
     if effect.calibrate is not None:
         values = _effect_values(effect, 0.75)
         want = effect.apply(base, values)

@@ -3,6 +3,8 @@ diagnosis through it, and broken effects caught with a named error. docs/archite
 literally."""
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 import finkensim.gap  # noqa: F401  (registers the whole catalogue, radio effects included)
@@ -34,11 +36,17 @@ def test_every_catalogued_effect_passes_its_checker(name):
 
 from finkensim.gap.attribute.effects import Effect, Param, register  # noqa: E402
 
+def best_of_a_grid(objective, effect, current, values):   # optional: the effect's own fit
+    sensors = [s for s in effect.sensors if s in objective.tables]
+    grid = [{"bias": b} for b in (-0.2, -0.1, 0.0, 0.1, 0.2)]
+    return min(grid, key=lambda v: objective.objective(effect, current, sensors, v))
+
 SONAR_OFFSET = Effect(
     name="sonar_offset_demo", sensors=("ultrasonic",),
     params=(Param("bias", -0.3, 0.3, unit="m"),),
     apply=lambda base, v: base.with_sonar(bias=base.sonar.bias + v["bias"]),
-    doc="a constant offset on every sonar echo")
+    doc="a constant offset on every sonar echo",
+    fit=best_of_a_grid)                 # leave it out for the generic fit
 
 
 def test_the_recipe_effect_passes_and_registers():
@@ -48,6 +56,33 @@ def test_the_recipe_effect_passes_and_registers():
         assert fx.REGISTRY["sonar_offset_demo"] is SONAR_OFFSET
     finally:
         fx.REGISTRY.pop("sonar_offset_demo", None)
+
+
+class _Objective:
+    """The diagnosis as a fit sees it (FitObjective), with a training score that is least at a 0.1 m bias."""
+    tables = {"ultrasonic": None}
+
+    def objective(self, effect, current, sensors, values):
+        assert sensors == ["ultrasonic"]
+        return abs(values["bias"] - 0.1)
+
+
+def test_the_diagnosis_fits_an_effect_with_its_own_fit():
+    from finkensim.default_scenario import load_scenario
+    from finkensim.gap.diagnosis import Diagnosis
+    from finkensim.gap.model.params import ModelParams
+
+    res = Diagnosis.fit(_Objective(), SONAR_OFFSET, ModelParams.from_config(load_scenario()))
+    assert res.values == {"bias": 0.1} and res.score_train == 0.0
+
+
+@pytest.mark.parametrize("fit, message", [
+    (lambda objective, effect: {}, "four positional parameters"),
+    ("grid", "expected None or a callable"),
+])
+def test_an_own_fit_that_cannot_be_called_as_documented_is_caught(fit, message):
+    with pytest.raises(PluginError, match=message):
+        check_effect(dataclasses.replace(SONAR_OFFSET, fit=fit))
 
 
 def test_an_effect_that_changes_a_sensor_it_does_not_name_is_caught():

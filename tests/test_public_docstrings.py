@@ -18,7 +18,8 @@ CONTRACTS = {
     "finkensim.gap.attribute.effects.Param": (),
     "finkensim.gap.attribute.effects.register": (),
     "finkensim.gap.diagnosis.FitResult": (),
-    "finkensim.gap.diagnosis.Diagnosis": ("fit", "score_heldout"),
+    "finkensim.gap.diagnosis.Diagnosis": ("fit", "score_heldout", "objective", "fit_group"),
+    "finkensim.gap.attribute.objective.FitObjective": ("objective", "fit_group"),
     "finkensim.flightlog.npz.save": (),
 }
 
@@ -82,6 +83,8 @@ def test_public_docstring(label, obj):
     assert doc and doc.strip(), f"{label} has no docstring"
     if inspect.isclass(func) and issubclass(func, BaseException):
         return
+    if inspect.isclass(func) and getattr(func, "_is_protocol", False):
+        return  # a Protocol is never built (its signature is *args, **kwargs): its methods are checked
     wanted = signature_names(func)
     if is_config_section(func):
         return  # its keys are documented by their field metadata (next test); the docs build lists them

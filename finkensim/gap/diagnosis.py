@@ -29,18 +29,16 @@ from ..flightlog import FlightLog
 from .attribute import effects as fx
 from ..sensors.sonar_model import ERROR_NONE
 from .detect.censoring import detect_censoring
-from .attribute.fits import CUSTOM_FITS, nelder_mead
+from .attribute.fits import nelder_mead
 from .detect.limits import range_limits
+from .detect.locations import locate_gap
 from .model.params import ModelParams
 from .model.predictive import LRU, ImuTable, RangingTable, SonarTable
 from .model.replay import GapInputError, prepare_flights
 from .model.scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
-from .detect.stats import BlockBootstrap, fdr_significant
+from .detect.stats import BlockBootstrap
 
 SENSORS = ("ultrasonic", "ranging", "imu")
-#: a location (one bin of one feature) needs at least this many readings
-MIN_BIN_READINGS = 30
-DISCRETE_FEATURES = {"hit_type", "neighbor_in_beam", "axis"}
 
 
 @dataclass
@@ -320,44 +318,31 @@ class Diagnosis:
 
     # ------------------------------------------------------------------ where
     def locations(self, p: ModelParams):
-        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap; each bin also carries
-        ``_residual``, the median of reading − model median in the sensor's own unit (m for the range sensors)."""
-        cfg = self.cfg.gap
-        res, rows = self.evaluate(p, "all")
-        locs = []
-        for s, (_, gap) in res.items():
-            tab = self.tables[s]
-            r = rows[s]
-            D, y, _ = self.censored_draws(s, p, r)
-            resid = y - np.median(D, axis=1)
-            bb = BlockBootstrap(self.block_ids(s, r), n_boot=cfg.n_boot, seed=self.seed)
-            chans = [("all", np.ones(r.size, bool))]
-            if s == "ultrasonic" and len(tab.channel_names) > 1:
-                chans += [(nm, tab.channel[r] == k) for k, nm in enumerate(tab.channel_names)]
-            for cname, cmask in chans:
-                for feat, fv in tab.features.items():
-                    v = fv[r]
-                    ok = np.isfinite(v) & cmask
-                    if ok.sum() < MIN_BIN_READINGS:
-                        continue
-                    for lo, hi in _bins(v[ok], feat, cfg.n_bins):
-                        m = ok & (v >= lo) & (v < hi)
-                        if m.sum() < MIN_BIN_READINGS:
-                            continue
-                        st = bb.stats(gap, m)
-                        rm = resid[m & np.isfinite(resid)]
-                        locs.append({"sensor": s, "channel": cname, "feature": feat, "low": float(lo),
-                                     "high": float(hi) if np.isfinite(hi) else 1e9, "gap": st.mean,
-                                     "ci": [st.ci[0], st.ci[1]], "n": st.n, "_p": st.p_positive,
-                                     "_residual": float(np.median(rm)) if rm.size else math.nan})
-        sig = fdr_significant([loc["_p"] for loc in locs], cfg.alpha)
-        for loc, sg in zip(locs, sig):
-            loc["_significant"] = bool(sg) and loc["gap"] > cfg.margin
-        locs.sort(key=lambda d: -d["gap"] if np.isfinite(d["gap"]) else math.inf)
-        return locs
+        """Gap per (sensor, channel, feature, bin) on all flights under p, sorted by gap
+        (:func:`~finkensim.gap.detect.locations.locate_gap`)."""
+        return locate_gap(self, p)
 
     # ------------------------------------------------------------------ which
-    def _objective(self, effect, current, sensors, values):
+    def objective(self, effect, current: ModelParams, sensors, values: dict) -> float:
+        """The training score of ``effect`` at ``values`` on top of ``current`` (lower is better): what every fit
+        minimises (:class:`~finkensim.gap.attribute.objective.FitObjective`).
+
+        Parameters
+        ----------
+        effect : Effect
+            Anything with ``apply(current, values) -> ModelParams``.
+        current : ModelParams
+            The model the effect is added to.
+        sensors : sequence of str
+            The sensors scored (a sensor without readings adds nothing).
+        values : dict
+            Parameter name → value.
+
+        Returns
+        -------
+        float
+            The sum over ``sensors`` of the mean normalised CRPS on their training rows.
+        """
         p = effect.apply(current, values)
         tot = 0.0
         for s in sensors:
@@ -389,21 +374,42 @@ class Diagnosis:
         """
         vals = dict(effect.start(current))
         sensors = [s for s in effect.sensors if s in self.tables]
-        custom = effect.extra.get("fit") or CUSTOM_FITS.get(effect.name)
-        if custom is not None:
-            vals = custom(self, effect, current, vals)
+        if effect.fit is not None:
+            vals = effect.fit(self, effect, current, vals)
         else:
             groups = [[p] for p in effect.params] if effect.separable else [list(effect.params)]
             for group in groups:
                 sens = [group[0].name] if (effect.separable and group[0].name in SENSORS) else sensors
                 if not any(s in self.tables for s in sens):
                     continue
-                vals = self._fit_group(effect, current, sens, vals, group)
+                vals = self.fit_group(effect, current, sens, vals, group)
         p = effect.apply(current, vals)
-        return FitResult(effect.name, vals, p, self._objective(effect, current, sensors, vals))
+        return FitResult(effect.name, vals, p, self.objective(effect, current, sensors, vals))
 
-    def _fit_group(self, effect, current, sensors, vals, group):
-        f = lambda v: self._objective(effect, current, sensors, v)  # noqa: E731
+    def fit_group(self, effect, current: ModelParams, sensors, vals: dict, group) -> dict:
+        """The generic search over the parameters ``group`` of ``effect``, the others fixed at ``vals``: an integer
+        parameter over every integer in its range, a continuous one on a grid refined by a bounded scalar search,
+        several together on a coarse grid refined by Nelder–Mead (:class:`~finkensim.gap.attribute.objective.FitObjective`).
+
+        Parameters
+        ----------
+        effect : Effect
+            The effect fitted.
+        current : ModelParams
+            The model it is added to.
+        sensors : sequence of str
+            The sensors scored.
+        vals : dict
+            Parameter name → starting value.
+        group : sequence of Param
+            The parameters searched together.
+
+        Returns
+        -------
+        dict
+            ``vals`` with the group's parameters at the best point found.
+        """
+        f = lambda v: self.objective(effect, current, sensors, v)  # noqa: E731
         if len(group) == 1:
             prm = group[0]
             if prm.integer:
@@ -455,15 +461,3 @@ class Diagnosis:
         evt, _ = self.evaluate(res.params, "fit")
         res.gap_train = float(np.mean([np.nanmean(g) for _, g in evt.values()]))
         return res
-
-
-def _bins(v, feat, n_bins):
-    """[low, high) bins of a feature's values: categories for discrete features, else quantiles."""
-    if feat in DISCRETE_FEATURES or np.unique(v).size <= 3:
-        return [(u, u + 0.5 if feat in DISCRETE_FEATURES else np.nextafter(u, np.inf)) for u in np.unique(v)]
-    edges = np.unique(np.quantile(v, np.linspace(0, 1, n_bins + 1)))
-    if edges.size < 2:
-        return []
-    out = [(edges[i], edges[i + 1]) for i in range(edges.size - 2)]
-    out.append((edges[-2], np.nextafter(edges[-1], np.inf)))
-    return out

@@ -25,7 +25,7 @@ by the simulator yet; a calibrated config says so (:mod:`finkensim.gap.quantify.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 from ...config import Config
@@ -33,6 +33,8 @@ from ...config import Config
 from ...sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
                                    SCHEDULE_SIMULTANEOUS)
 from ..model.params import ModelParams
+from . import fits
+from .objective import EffectFit
 
 
 @dataclass(frozen=True)
@@ -91,9 +93,11 @@ class Effect:
     calibrate : callable, optional
         ``calibrate(values, cfg) -> updates``: the config updates (dotted keys) under which the simulator flies
         the effect at ``values`` on top of ``cfg`` (:mod:`finkensim.gap.quantify.calibrate`); None = not flown yet.
-    extra : dict
-        Anything else; ``extra["fit"]`` replaces the generic fit: ``fit(diagnosis, effect, current, values)
-        -> values``.
+    fit : callable, optional
+        The effect's own fit, replacing the generic one (a grid, a bounded scalar search or Nelder–Mead per
+        parameter group): ``fit(objective, effect, current, values) -> values``
+        (:data:`~finkensim.gap.attribute.objective.EffectFit`; ``objective`` is the diagnosis as a fit sees it,
+        :class:`~finkensim.gap.attribute.objective.FitObjective`); None = the generic fit.
     """
 
     name: str
@@ -106,7 +110,7 @@ class Effect:
     catch_all: bool = False
     separable: bool = False  # parameters act on different sensors and are fitted one at a time
     calibrate: Callable[[dict, Config], dict] | None = None
-    extra: dict = field(default_factory=dict)
+    fit: EffectFit | None = None
 
     def start(self, base: ModelParams) -> dict:
         """Parameter values that reproduce the base model (or the effect's neutral values).
@@ -230,6 +234,7 @@ register(Effect(
                                     Param("response", 0.0, 3.0, unit="s"), Param("shape", 1.0, 12.0)),
     lambda b, v: b.with_(bulge_amplitude=v["amplitude"], bulge_reach=v["reach"], bulge_response=v["response"],
                          bulge_shape=v["shape"]),
+    fit=fits.fit_bulge,
     doc="curtain plates bend toward nearby copters (Bernoulli) beyond the configured wall model: each plate "
         "moves toward the arena by amplitude·exp(−(d/reach)^shape), d its distance to the nearest copter body "
         "(shape 2 a Gaussian, larger a flat bulge that ends sharply near reach), following it with a first-order "
@@ -299,6 +304,7 @@ def _update_rate(base: ModelParams, v: dict) -> ModelParams:
 register(Effect(
     "sonar_update_rate", ("ultrasonic",), (Param("rate_hz", 0.0, 50.0, unit="Hz"), Param("phase", 0.0, 1.0)),
     _update_rate,
+    fit=fits.fit_update_rate,
     doc="the sonars measure rate_hz times a second and hold each reading until the next (sample-and-hold; phase: "
         "the first measurement, in periods from the log's first sample; rate 0 = every sample): readings describe "
         "the world up to one period earlier, in a sawtooth",
@@ -311,6 +317,7 @@ register(Effect(
      Param("imu", -0.5, 1.0, unit="s")),
     lambda b, v: b.with_(latency_sonar=float(v["ultrasonic"]), latency_ranging=float(v["ranging"]),
                          latency_imu=float(v["imu"])),
+    fit=fits.fit_latency,
     doc="readings describe the world some time earlier (per sensor, s; negative: later, a clock offset set too "
         "early); searched in whole samples of the log",
     initial=lambda b: {"ultrasonic": b.latency_sonar, "ranging": b.latency_ranging, "imu": b.latency_imu},
@@ -331,12 +338,14 @@ register(Effect(
     "ranging_dropout", ("ranging",), (Param("a", -12.0, 8.0), Param("b", -6.0, 6.0, unit="1/m")),
     lambda b, v: b.with_ranging(dropout_a=v["a"], dropout_b=v["b"]),
     calibrate=lambda v, cfg: {"ranging.dropout_a": v["a"], "ranging.dropout_b": v["b"]},
+    fit=fits.fit_dropout,
     doc="readings go missing with probability sigmoid(a + b·distance)",
     initial=lambda b: {"a": -12.0, "b": 0.0}, expected_features=("true_range",)))
 register(Effect(
     "pose_noise", ("ultrasonic", "ranging", "imu"),
     (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
     lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
+    fit=fits.fit_pose_noise,
     doc="tracking noise in the logged poses", catch_all=True,
     # the flight-log writer records simulated poses with it, and a diagnosis of new logs under the calibrated config
     # takes it instead of the logs' declared noise
@@ -349,6 +358,7 @@ register(Effect(
     lambda b, v: b.with_(imu=b.imu._replace(acc_bias_x=b.imu.acc_bias_x + v["acc_x"],
                                             acc_bias_y=b.imu.acc_bias_y + v["acc_y"],
                                             gyro_bias=b.imu.gyro_bias + v["gyro"])),
+    fit=fits.fit_imu_bias,
     doc="constant accelerometer and gyro biases", initial=lambda b: {"acc_x": 0.0, "acc_y": 0.0, "gyro": 0.0},
     calibrate=lambda v, cfg: {"imu.acc_bias": [cfg.imu.acc_bias[0] + v["acc_x"], cfg.imu.acc_bias[1] + v["acc_y"]],
                               "imu.gyro_bias": cfg.imu.gyro_bias + v["gyro"]},

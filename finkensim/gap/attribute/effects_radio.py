@@ -21,6 +21,7 @@ import numpy as np
 
 from ...config import Config
 from .effects import Effect, Param, register
+from .objective import FitObjective
 from ..model.params import ModelParams
 
 __all__ = ["MAX_DELAY_NODES", "fit_node_delay", "node_delays"]
@@ -46,7 +47,7 @@ def _plus_delays(configured, values: dict) -> list[float]:
     return [d + e for d, e in zip(now, fitted)]
 
 
-def fit_node_delay(diag, effect: Effect, current: ModelParams, vals: dict) -> dict:
+def fit_node_delay(diag: FitObjective, effect: Effect, current: ModelParams, vals: dict) -> dict:
     """Per-node delays from the training readings: the residual r = reading − model median of each reading between
     nodes a and b is d_a + d_b; least absolute deviations (iteratively reweighted least squares, minimum norm where
     the log pins down only sums), clipped to the parameters' bounds."""
@@ -111,7 +112,7 @@ register(Effect(
         "two nodes' delays",
     initial=lambda b: {f"delay_{k}": 0.0 for k in range(MAX_DELAY_NODES)},
     calibrate=lambda v, cfg: {"ranging.node_delay": _plus_delays(cfg.ranging.node_delay, v)},
-    catch_all=True, extra={"fit": fit_node_delay}))
+    catch_all=True, fit=fit_node_delay))
 register(Effect(
     "ranging_nlos_tail", ("ranging",),
     (Param("probability", 0.0, 0.5), Param("mean", 0.02, 1.5, unit="m")),

@@ -1,23 +1,21 @@
 """Parameter searches of the diagnosis: a bounded Nelder–Mead, a joint fit of several effects, and the effects'
 own fits.
 
-Each custom fit ``fit(diag, effect, current, vals) -> vals`` takes a :class:`~finkensim.gap.diagnosis.Diagnosis`
-(its ``_objective``, ``_fit_group``, tables and training rows), the effect, the model it is fitted on top of and
-the starting values, and returns the fitted values by parameter name.
+An effect's own fit (its ``Effect.fit``, :data:`~finkensim.gap.attribute.objective.EffectFit`) is
+``fit(diag, effect, current, vals) -> vals``: the diagnosis as a fit sees it
+(:class:`~finkensim.gap.attribute.objective.FitObjective`: the objective, the generic group search, the tables and
+training rows), the effect, the model it is fitted on top of and the starting values; it returns the fitted values
+by parameter name. The catalogue's own fits are the ``fit_*`` functions below.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import TYPE_CHECKING
-
 import numpy as np
 from scipy import optimize
 
+from .objective import FitObjective
 from .stated import stated_floor
-
-if TYPE_CHECKING:
-    from ..diagnosis import Diagnosis
 
 
 def nelder_mead(f, vals, group, x0, f0, maxfev=40):
@@ -44,7 +42,7 @@ class _Chain:
         return p
 
 
-def joint_fit(diag: "Diagnosis", effects, values, maxfev: int = 40):
+def joint_fit(diag: FitObjective, effects, values, maxfev: int = 40):
     """Fit the continuous parameters of ``effects`` together (integer ones stay as given): a Nelder–Mead from
     ``values`` (one dict per effect) on the training rows of their sensors, the effects applied in order on the
     configured model. Returns one dict of values per effect.
@@ -58,7 +56,7 @@ def joint_fit(diag: "Diagnosis", effects, values, maxfev: int = 40):
     group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
     flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}
     sensors = sorted({s for e in effects for s in e.sensors if s in diag.tables})
-    f = lambda v: diag._objective(chain, diag.base, sensors, v)  # noqa: E731
+    f = lambda v: diag.objective(chain, diag.base, sensors, v)  # noqa: E731
     out = nelder_mead(f, flat, group, [flat[q.name] for q in group], f(flat), maxfev=maxfev) if group else flat
     return [{q.name: out[f"{e.name}.{q.name}"] for q in e.params} for e in effects]
 
@@ -74,7 +72,7 @@ def _simplex(x0, step, lo, hi):
 
 # ---------------------------------------------------------------------- closed-form fits
 
-def _fit_imu_bias(diag: "Diagnosis", effect, current, vals):
+def fit_imu_bias(diag: FitObjective, effect, current, vals):
     """Biases by least squares on the windowed residuals around the model's mean draw: the two
     accelerometer biases (body frame) jointly through each window's rotation, the gyro bias alone."""
     if "imu" not in diag.tables:
@@ -99,7 +97,7 @@ def _fit_imu_bias(diag: "Diagnosis", effect, current, vals):
     return out
 
 
-def _fit_dropout(diag: "Diagnosis", effect, current, vals):
+def fit_dropout(diag: FitObjective, effect, current, vals):
     """Logistic regression of 'missing' on true distance by maximum likelihood (no draws needed)."""
     if "ranging" not in diag.tables:
         return vals
@@ -120,7 +118,7 @@ def _fit_dropout(diag: "Diagnosis", effect, current, vals):
     return {"a": float(r.x[0]), "b": float(r.x[1])}
 
 
-def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
+def fit_pose_noise(diag: FitObjective, effect, current, vals):
     """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
     coarse grid, then refined by a bounded scalar search between the best point's grid neighbours; never below the
     noise the logs state (:func:`~finkensim.gap.attribute.stated.stated_floor`: a best below it is searched again between the
@@ -130,7 +128,7 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
     v = {"sigma_xy": sx0, "sigma_yaw": sy0}
     floor = stated_floor(diag.flights, effect.name)  # never less noise than a log states
-    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    f = lambda vv: diag.objective(effect, current, sensors, vv)  # noqa: E731
     for name, grid in (("sigma_xy", [0.0, 0.001, 0.002, 0.004, 0.007, 0.012, 0.02, 0.035, 0.05]),
                        ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
         cands = sorted(set(grid) | {v[name]})
@@ -155,7 +153,7 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     return v
 
 
-def _fit_latency(diag: "Diagnosis", effect, current, vals):
+def fit_latency(diag: FitObjective, effect, current, vals):
     """Per sensor, a search over whole log samples between the bounds (s): every ``stride``-th lag first
     (about 16 candidates), then a pattern search from the best with steps stride/2, stride/4, … and finally 1
     until no neighbour improves (the exhaustive ±stride scan it replaced cost 2·stride − 1 evaluations per
@@ -166,7 +164,7 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
     for prm in effect.params:
         if prm.name not in diag.tables:
             continue
-        f = lambda k: diag._objective(effect, current, [prm.name], {**out, prm.name: k * dt})  # noqa: E731
+        f = lambda k: diag.objective(effect, current, [prm.name], {**out, prm.name: k * dt})  # noqa: E731
         lo, hi = math.ceil(prm.lo / dt - 1e-9), math.floor(prm.hi / dt + 1e-9)
         stride = max(1, (hi - lo) // 16)
         start = int(round(out[prm.name] / dt))
@@ -190,13 +188,13 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
     return out
 
 
-def _fit_bulge(diag: "Diagnosis", effect, current, vals):
+def fit_bulge(diag: FitObjective, effect, current, vals):
     """Amplitude and reach first with the plates following at once (grid, then Nelder–Mead), then a few
     shapes, then a few response times, each with the others fixed, then all four together from the best."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     amp, reach, resp, shape = effect.params
-    v = diag._fit_group(effect, current, sensors, vals, [amp, reach])
-    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
+    v = diag.fit_group(effect, current, sensors, vals, [amp, reach])
+    f = lambda vv: diag.objective(effect, current, sensors, vv)  # noqa: E731
     for name, grid in (("shape", (2.0, 4.0, 8.0)), ("response", (0.0, 0.3, 0.8, 1.5))):
         cands = [{**v, name: c} for c in sorted({v[name], *grid})]
         scores = [f(c) for c in cands]
@@ -269,13 +267,13 @@ def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 
     return out
 
 
-def _fit_update_rate(diag: "Diagnosis", effect, current, vals):
+def fit_update_rate(diag: FitObjective, effect, current, vals):
     """Sample-and-hold: the strongest rhythms of the readings' changes (:func:`hold_rhythms`; they pick rate and
     phase to within the grid, a step function of both being hopeless for a simplex over a long flight) scored
     against the starting values, the best kept. The rhythms are found in every sample of the flights (held-out
     ones too): two numbers from thousands of change times; the choice among them is by the training score."""
     rate, phase = effect.params
-    f = lambda v: diag._objective(effect, current, ["ultrasonic"], v)  # noqa: E731
+    f = lambda v: diag.objective(effect, current, ["ultrasonic"], v)  # noqa: E731
     dt = min(fl.dt for fl in diag.flights)
     # a change shows at the first sample at or after its measurement, on average half a sample late
     cands = [dict(vals)] + [{rate.name: r, phase.name: (ph - r * dt * back) % 1.0}
@@ -283,5 +281,3 @@ def _fit_update_rate(diag: "Diagnosis", effect, current, vals):
     scores = [f(c) for c in cands]
     return cands[int(np.argmin(scores))]
 
-
-CUSTOM_FITS = {"sonar_update_rate": _fit_update_rate, "imu_bias": _fit_imu_bias, "wall_bulge": _fit_bulge, "latency": _fit_latency, "ranging_dropout": _fit_dropout, "pose_noise": _fit_pose_noise}

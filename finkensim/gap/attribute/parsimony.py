@@ -36,7 +36,7 @@ def _fit_flexible_bulge(diag, effect, current, vals):
     every parameter from the best."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     reach = next(q for q in effect.params if q.name == "reach")
-    f = lambda v: diag._objective(effect, current, sensors, v)  # noqa: E731
+    f = lambda v: diag.objective(effect, current, sensors, v)  # noqa: E731
     cands = [{**vals, "hinge": h, "reach": min(reach.hi, vals["reach"] * k)} for h, k in _BULGE_STARTS]
     scores = [f(c) for c in cands]
     i = int(np.argmin(scores))
@@ -58,7 +58,7 @@ def flexible_version(name: str) -> fx.Effect | None:
     Returns
     -------
     Effect or None
-        The flexible effect (fitted by its ``extra["fit"]``), None when the effect has none.
+        The flexible effect (fitted by its own ``fit``), None when the effect has none.
     """
     if name != "wall_bulge" or name not in fx.REGISTRY:
         return None
@@ -68,7 +68,7 @@ def flexible_version(name: str) -> fx.Effect | None:
         lambda b, v: wb.apply(b, v).with_(bulge_hinge=float(v["hinge"])),
         doc=wb.doc + "; its law blended with the walls' own polynomial hinge law (weight hinge)",
         initial=lambda b: {**wb.start(b), "hinge": b.bulge_hinge}, expected_features=wb.expected_features,
-        extra={"fit": _fit_flexible_bulge})
+        fit=_fit_flexible_bulge)
 
 
 @dataclass
@@ -179,7 +179,7 @@ def _flexible_without(diag, selection):
         if flex is None:
             continue
         rest = _model(diag, chain[:k] + chain[k + 1:])
-        vals = flex.extra["fit"](diag, flex, rest, {"hinge": 0.0, **r.values})
+        vals = flex.fit(diag, flex, rest, {"hinge": 0.0, **r.values})
         chain[k] = FitResult(r.name, vals, flex.apply(rest, vals), math.nan)
     last = chain[-1]
     return chain, diag.score_heldout(FitResult(last.name, last.values, _model(diag, chain), math.nan))

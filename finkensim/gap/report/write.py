@@ -13,7 +13,7 @@ import numpy as np
 
 from ...atomic import write_text_atomic
 from ...viz.png import save_png
-from ..diagnosis import MIN_BIN_READINGS
+from ..detect.locations import MIN_BIN_READINGS
 from .result import SPEC_KEYS, GapReport
 
 __all__ = ["SPEC_KEYS", "spec_report", "write_report", "markdown", "write_figures"]
