@@ -575,7 +575,7 @@ class _FixedOverall:
 
 
 def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unknown():
-    from finkensim.gap.attribute.selection import _sensor_gaps
+    from finkensim.gap.detect.significance import sensor_gaps
 
     cfg = Config().gap
     diag = _FixedOverall({
@@ -584,7 +584,7 @@ def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unk
         "imu": (-0.2, (-0.3, -0.1), 1.0 - 1e-6),       # predictive too wide: not an explanation either
         "other": (0.2, (math.nan, math.nan), math.nan),  # too few blocks to tell
     })
-    out = _sensor_gaps(diag, {s: None for s in diag.values}, {s: None for s in diag.values},
+    out = sensor_gaps(diag, {s: None for s in diag.values}, {s: None for s in diag.values},
                        list(diag.values), 4, cfg, remainder=True)
     assert out["ultrasonic"]["significant"] and out["imu"]["significant"] and out["other"]["significant"]
     assert not out["ranging"]["significant"]
@@ -593,12 +593,12 @@ def test_a_remaining_gap_is_significant_on_either_side_and_when_its_power_is_unk
 
 
 def test_the_configured_models_gap_is_tested_one_sided_and_unknown_power_is_no_gap():
-    from finkensim.gap.attribute.selection import _sensor_gaps
+    from finkensim.gap.detect.significance import sensor_gaps
 
     cfg = Config().gap
     diag = _FixedOverall({"ultrasonic": (0.2, (0.1, 0.3), 1e-6), "imu": (-0.2, (-0.3, -0.1), 1.0 - 1e-6),
                           "other": (0.2, (math.nan, math.nan), math.nan)})
-    out = _sensor_gaps(diag, {s: None for s in diag.values}, {s: None for s in diag.values}, list(diag.values), 3, cfg)
+    out = sensor_gaps(diag, {s: None for s in diag.values}, {s: None for s in diag.values}, list(diag.values), 3, cfg)
     assert out["ultrasonic"]["significant"]
     assert not out["imu"]["significant"] and not out["other"]["significant"]
     assert out["imu"]["p"] == 1.0 - 1e-6

@@ -1,4 +1,4 @@
-"""The targeted test of a gap (:func:`finkensim.gap.attribute.selection._targeted_test`): when the omnibus calibration test finds
+"""The targeted test of a gap (:func:`finkensim.gap.attribute.targeted.targeted_test`): when the omnibus calibration test finds
 nothing, a structured effect whose fit improves the held-out score significantly still reveals a gap; catch-alls
 never do, and the threshold is Bonferroni over the structured candidates.
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from finkensim.gap import Diagnosis, run_diagnosis
-from finkensim.gap.attribute import selection as S
+from finkensim.gap.attribute import targeted as S
 from finkensim.gap.diagnosis import FitResult
 from finkensim.gap.report.write import markdown
 from finkensim.gap.validation.cases import Case, _post_latency, generate
@@ -53,7 +53,7 @@ def test_a_clear_structured_improvement_reveals_a_gap_on_its_sensors(setting):
     rng, base, rows, cfg = setting
     first = [_fit("ranging_nlos", base, 0.005, rng), _fit("sound_speed", base, 0.0, rng),
              _fit("imu_bias", base, -0.002, rng)]
-    t = S._targeted_test(_IidDiag(), first, base, rows, cfg)
+    t = S.targeted_test(_IidDiag(), first, base, rows, cfg)
     assert t is not None and t["effect"] == "ranging_nlos" and t["sensors"] == ["ranging"], t
     assert t["passed"] == ["ranging_nlos"]
     assert t["threshold"] == pytest.approx(cfg.alpha / 3)
@@ -64,10 +64,10 @@ def test_the_gap_lies_on_the_sensors_the_effect_improves_by_themselves(setting):
     rng, base, rows, cfg = setting
     lag = FitResult("latency", {}, None, math.nan, rows_score={
         **base, "ranging": base["ranging"] - (0.02 + 0.01 * rng.standard_normal(N))})  # a lag on the radio only
-    t = S._targeted_test(_IidDiag(), [lag], base, rows, cfg)
+    t = S.targeted_test(_IidDiag(), [lag], base, rows, cfg)
     assert t is not None and t["sensors"] == ["ranging"], t
     both = _fit("latency", base, 0.02, rng)  # improves every sensor it acts on
-    assert S._targeted_test(_IidDiag(), [both], base, rows, cfg)["sensors"] == ["ultrasonic", "ranging", "imu"]
+    assert S.targeted_test(_IidDiag(), [both], base, rows, cfg)["sensors"] == ["ultrasonic", "ranging", "imu"]
 
 
 def test_catch_alls_never_reveal_a_gap(setting):
@@ -75,14 +75,14 @@ def test_catch_alls_never_reveal_a_gap(setting):
     # a noise scale, a constant bias and pose noise absorb recording conventions: even a large improvement is not a gap
     first = [_fit(n, base, 0.05, rng) for n in ("sonar_rayleigh_scale", "sonar_bias", "pose_noise", "crosstalk_constant")]
     first.append(_fit("latency", base, 0.0, rng))
-    assert S._targeted_test(_IidDiag(), first, base, rows, cfg) is None
-    assert S._targeted_test(_IidDiag(), first[:4], base, rows, cfg) is None  # no structured candidate at all
+    assert S.targeted_test(_IidDiag(), first, base, rows, cfg) is None
+    assert S.targeted_test(_IidDiag(), first[:4], base, rows, cfg) is None  # no structured candidate at all
 
 
 def test_an_improvement_below_the_practical_bar_or_the_bonferroni_threshold_is_no_gap(setting):
     rng, base, rows, cfg = setting
     small = _fit("ranging_dropout", base, 0.5 * cfg.accept_improvement, rng)  # significant, but too small to matter
-    assert S._targeted_test(_IidDiag(), [small], base, rows, cfg) is None
+    assert S.targeted_test(_IidDiag(), [small], base, rows, cfg) is None
     # p = 0.023 (mean 2 standard errors above 0): significant alone, not among eight structured candidates
     zero = {s: np.zeros(N) for s in base}
     z = rng.standard_normal(N)
@@ -90,12 +90,12 @@ def test_an_improvement_below_the_practical_bar_or_the_bonferroni_threshold_is_n
     m = 2 * cfg.accept_improvement
     middling = FitResult("ranging_nlos", {}, None, math.nan,
                          rows_score={**zero, "ranging": -(m + 0.5 * m * math.sqrt(N) * z)})
-    alone = S._targeted_test(_IidDiag(), [middling], zero, rows, cfg)
+    alone = S.targeted_test(_IidDiag(), [middling], zero, rows, cfg)
     assert alone is not None and alone["p"] == pytest.approx(0.0228, abs=1e-4)
     others = [FitResult(n, {}, None, math.nan, rows_score=dict(zero))
               for n in ("wall_bulge", "crosstalk_geometric", "beam_width", "sound_speed", "latency", "ranging_dropout",
                         "imu_bias")]
-    assert S._targeted_test(_IidDiag(), [middling] + others, zero, rows, cfg) is None
+    assert S.targeted_test(_IidDiag(), [middling] + others, zero, rows, cfg) is None
 
 
 SMALL = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}

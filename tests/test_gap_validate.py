@@ -110,7 +110,7 @@ def test_a_greedy_second_effect_that_trades_off_with_the_truth_is_swapped_by_a_j
 def test_two_effects_that_trade_off_are_found_by_a_joint_fit_when_the_greedy_steps_keep_one_or_none(name, step, first):
     """Seed 9 of the random conventions axis (validation trials that named the factor alone, and nothing): effects on
     one sensor trade off, so a conditional fit of the second on top of the first (or of either alone) shows little;
-    fitted jointly both come out near the truth and the pair is kept (:mod:`finkensim.gap.attribute.selection`)."""
+    fitted jointly both come out near the truth and the pair is kept (:mod:`finkensim.gap.attribute.joint`)."""
     import zlib
     from finkensim.gap.validation.conventions import draw_conventions
     conv = draw_conventions(np.random.default_rng([9, zlib.crc32(name.encode())]))

@@ -10,8 +10,8 @@ from .attribute.effects import Effect, Param, register
 from .model.params import ModelParams
 from .model.replay import GapInputError
 from .report.result import GapDetails, GapReport
-from .pipeline import diagnose
-from .attribute.selection import check_effects, run_diagnosis
+from .pipeline import diagnose, run_diagnosis
+from .attribute.selection import check_effects
 
 __all__ = ["diagnose", "run_diagnosis", "Diagnosis", "GapReport", "GapDetails", "ModelParams", "Effect", "Param",
            "register", "GapInputError", "check_heldout", "check_effects"]

@@ -1,4 +1,5 @@
-"""Sim-to-real gap diagnosis: where the gap lies, which effect explains it, how far it shrinks.
+"""The prepared diagnosis (:class:`Diagnosis`): the logs replayed and tabulated once, and the evaluations every stage
+of :func:`~finkensim.gap.pipeline.run_diagnosis` asks of them.
 
 1. **Replay** every log (:mod:`.replay`) and build per-sensor tables of the real readings with
    context features and a predictive ensemble of M draws per reading (:mod:`.predictive`).
@@ -8,11 +9,12 @@
    sensors with different units share one dimensionless score; ranging adds the Brier score of
    missing readings. The overall score is the mean over sensors of the per-reading mean.
 3. **Where**: per sensor, channel and feature, quantile bins with block-bootstrap CIs, ranked by
-   gap, Benjamini–Hochberg across all bins.
+   gap, Benjamini–Hochberg across all bins (:mod:`.detect.locations`).
 4. **Which**: fit every catalogued effect (:mod:`.effects`) on the training flights, score it on
    held-out flights (:meth:`Diagnosis.fit`, :meth:`Diagnosis.score_heldout`).
 
-Steps 4's selection and 5, the verdict per ``docs/formats/gap-report.md``, are :mod:`.selection`.
+The selection and the verdict (``docs/formats/gap-report.md``) are the stages of
+:func:`~finkensim.gap.pipeline.run_diagnosis`: :mod:`.attribute.selection`, :mod:`.quantify.verdict`.
 """
 from __future__ import annotations
 
@@ -130,6 +132,22 @@ class Diagnosis:
         self.M = cfg.gap.draws
         self.say = progress or (lambda msg: None)
         self.names = list(names)
+        self._replay(logs)
+        self.base = ModelParams.from_config(cfg)
+        self._split(heldout)
+        self._tabulate()
+        self.censoring = self._censoring()
+        self._choose_rows()
+        self._blocks()
+        self._score_cache = LRU(64)
+        self._fit_means = {}  # (sensor, predictive key) → mean training score
+        self._scales()
+
+    # ------------------------------------------------------------------ set-up
+    def _replay(self, logs):
+        """The logs replayed through the simulator's geometry (:func:`~finkensim.gap.model.replay.prepare_flights`),
+        refused before the tables are built when their arrays would not fit in memory."""
+        cfg = self.cfg
         self.say("replaying flights")
         self.flights = prepare_flights(logs, self.names, cfg)
         readings = 0.0
@@ -140,8 +158,10 @@ class Diagnosis:
             readings += f.samples.size * f.n_copters * per
         check_memory(gap_arrays(cfg, readings), f"the diagnosis of {len(self.flights)} flight(s)",
                      "lower gap.max_samples_per_flight or gap.draws, or diagnose fewer flights at once")
-        self.base = ModelParams.from_config(cfg)
-        self._split(heldout)
+
+    def _tabulate(self):
+        """Per sensor, the table of its real readings with their context and predictive draws."""
+        cfg = self.cfg
         self.say("building reading tables")
         self.tables = {}
         for sensor, cls in (("ultrasonic", SonarTable), ("ranging", RangingTable), ("imu", ImuTable)):
@@ -150,18 +170,15 @@ class Diagnosis:
                 self.tables[sensor] = tab
         if not self.tables:
             raise GapInputError("the logs carry no sensor readings (ultrasonic, ranging or imu): nothing to compare")
-        self.censoring = self._censoring()
-        self._choose_rows()
-        self._blocks()
-        self._score_cache = LRU(64)
-        self._fit_means = {}  # (sensor, predictive key) → mean training score
+
+    def _scales(self):
+        """Each sensor's fixed scale: the configured model's mean absolute error E|X − y| on the training rows."""
         self.scale = {}
         for s in self.tables:
             a, _ = self._terms(s, self.base, self.rows_fit[s])
             v = float(np.nanmean(a)) if np.isfinite(a).any() else 1.0
             self.scale[s] = max(v, 1e-9)
 
-    # ------------------------------------------------------------------ set-up
     def _split(self, heldout):
         n = len(self.flights)
         self.single = n == 1

@@ -52,7 +52,7 @@ class GapDetails:
     significance test) and its CI; best_score: the best held-out score of any predictive built (the
     reference of the score term of the shrink, :mod:`~finkensim.gap.quantify.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
     score; correction: the fitted :class:`~finkensim.gap.quantify.correction.Correction` or None; targeted: when the omnibus
-    test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.attribute.selection.run_diagnosis`),
+    test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.pipeline.run_diagnosis`),
     {effect, sensors, improvement, ci, p, threshold, passed}, else None; correction_skipped: sensor (or "all") →
     why no correction was fitted although the verdict is unexplained; limit_notes: sensor → range limit taken from
     the logs (:mod:`~finkensim.gap.detect.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:

@@ -20,7 +20,7 @@ import numpy as np
 from ...config import load_config
 from ..quantify.calibrate import write_calibrated
 from ..diagnosis import Diagnosis
-from ..attribute.selection import run_diagnosis
+from ..pipeline import run_diagnosis
 from .cases import generate, get_case, run_case
 from .tables import wilson
 

@@ -27,7 +27,7 @@ from ...flightlog import FlightLog
 from ...scenario import simulate_flight
 from .conventions import DEFAULT_CONVENTIONS, Conventions, draw_conventions
 from ..diagnosis import Diagnosis
-from ..attribute.selection import run_diagnosis
+from ..pipeline import run_diagnosis
 from ..attribute.effects import REGISTRY
 
 
