@@ -8,7 +8,7 @@ names the array, what is wrong and what was expected.
 
 Modules: :mod:`.format` (the :class:`FlightLog` record and the array schema, documented there),
 :mod:`.messages` (wording of error messages), :mod:`.encoding` (str arrays and the JSON
-``meta``), :mod:`.validation` (:func:`validate`), :mod:`.npz` (:func:`save`, :func:`load`),
+``meta``), :mod:`~finkensim.flightlog.validation` (:func:`validate`), :mod:`.npz` (:func:`save`, :func:`load`),
 :mod:`.csv` (:func:`from_csv`).
 
 Frame: origin at one arena corner, x along the width, y along the length. Missing readings are

@@ -2,7 +2,7 @@
 
 The format is specified in ``docs/formats/flightlog.md`` (the format the project publishes). This module holds the
 :class:`FlightLog` record, the names of the standard arrays and the error type; checking
-a log is :mod:`.validation`, files are :mod:`.npz` and :mod:`.csv`.
+a log is :mod:`~finkensim.flightlog.validation`, files are :mod:`.npz` and :mod:`.csv`.
 
 Arrays (all float64 unless stated; T samples, N copters, S sonars)::
 

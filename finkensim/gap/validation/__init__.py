@@ -1,4 +1,5 @@
 """The validation harness of ``finkensim gap-validate``, apart from the diagnosis it judges: withheld-effect cases
-(:mod:`.cases`) recorded the way other tools record (:mod:`.conventions`), run as a resumable sweep (:mod:`.sweep`),
-tabulated (:mod:`.tables`) and drawn (:mod:`.plot`); the closed loop diagnose → calibrate → diagnose
-(:mod:`.calibrated`)."""
+(:mod:`~finkensim.gap.validation.cases`) recorded the way other tools record
+(:mod:`~finkensim.gap.validation.conventions`), run as a resumable sweep (:mod:`~finkensim.gap.validation.sweep`),
+tabulated (:mod:`~finkensim.gap.validation.tables`) and drawn (:mod:`~finkensim.gap.validation.plot`); the closed
+loop diagnose → calibrate → diagnose (:mod:`~finkensim.gap.validation.calibrated`)."""

@@ -1,7 +1,7 @@
 """The tables of a withheld-effect validation run (:mod:`finkensim.gap.validation.cases`): the per-case summary with Wilson
 intervals and the confusion matrix (:func:`confusion`), the share naming exactly the withheld effects
 (:func:`exactly_withheld`), and the pair trials as an effect × effect grid
-(:func:`pair_grid`; :func:`pair_tally` / :func:`pair_count` also feed the figure of :mod:`.validate_plot`)."""
+(:func:`pair_grid`; :func:`pair_tally` / :func:`pair_count` also feed the figure of :mod:`~finkensim.gap.validation.plot`)."""
 from __future__ import annotations
 
 import math
