@@ -136,3 +136,19 @@ def test_no_two_compilations_of_one_function_differ_in_options():
             seen.setdefault(key, (f"{mod.name}.{name}", opts))
     assert seen, "no numba dispatchers found"
     assert not clashes, f"one function compiled with different options (they share a cache entry): {clashes}"
+
+
+def test_fits_see_the_diagnosis_only_through_the_fit_objective():
+    """The effects and their fits read a diagnosis through ``FitObjective`` (gap/attribute/objective.py): they import
+    nothing of gap/diagnosis.py and call no private member of the diagnosis they are given (the old
+    ``diagnose <-> fits`` cycle, docs/architecture.md, "An effect for the gap diagnosis")."""
+    bad = []
+    for name in ("fits", "effects", "effects_radio", "objective", "parsimony"):
+        path = PACKAGE / "gap" / "attribute" / f"{name}.py"
+        for node in ast.walk(_tree(path)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[-1] == "diagnosis" and name != "parsimony":
+                bad.append(f"{_rel(path)}:{node.lineno} imports {node.module}")
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "diag"
+                    and node.attr.startswith("_") and not node.attr.startswith("__")):
+                bad.append(f"{_rel(path)}:{node.lineno} diag.{node.attr}")
+    assert not bad, f"fits reaching past FitObjective: {bad}"
