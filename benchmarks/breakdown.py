@@ -41,7 +41,7 @@ def t_world(w, cp, hp, geo, dt, grid, reps):
             for n in range(N):
                 cmd_v[n, 0] = 0.2 * np.cos(w.yaw[b, n])
                 cmd_v[n, 1] = 0.2 * np.sin(w.yaw[b, n])
-            step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap, grid, env_grid(grid, b))
+            step_env(w, b, cmd_v, cmd_w, (cp, hp, geo), dt, (dist_buf, gap), grid, env_grid(grid, b))
 
 
 @njit(cache=True, error_model="numpy")
@@ -82,10 +82,10 @@ def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp,
         for b in range(B):
             displaced_plates_env(theta[b], plate_a, plate_b, normal, lever, pa, pb)
             if ideal_only:
-                ideal_env(pos[b], yaw[b], pa, pb, width, length, sp, buf, dist, kind, hit, g, env_grid(g, 0))
+                ideal_env(pos[b], yaw[b], (pa, pb, width, length), sp, (buf, dist, kind, hit), g, env_grid(g, 0))
             else:
-                ultrasonic_env(pos[b], yaw[b], pa, pb, width, length, sp, seed, b, r, (buf, dist, kind, hit, slot), out,
-                               g, env_grid(g, 0))
+                ultrasonic_env(pos[b], yaw[b], (pa, pb, width, length), sp, (seed, b, r), (buf, dist, kind, hit, slot),
+                               out, g, env_grid(g, 0))
 
 
 @njit(cache=True, error_model="numpy")

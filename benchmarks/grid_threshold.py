@@ -48,7 +48,8 @@ def world_step_us(n: int, grid: bool, steps: int) -> tuple[float, np.ndarray]:
 @njit(cache=True)
 def _ranging_loop(pos, beacons, p, g, out, reps):
     for r in range(reps):
-        ranging_grid_env(pos, np.zeros(pos.shape[0]), beacons, np.int64(1), np.int64(0), np.int64(r), p, out, g, env_grid(g, 0))
+        ranging_grid_env(pos, np.zeros(pos.shape[0]), beacons, (np.int64(1), np.int64(0), np.int64(r)), p, out, g,
+                         env_grid(g, 0))
 
 
 def ranging_us(n: int, grid: bool, reps: int) -> tuple[float, np.ndarray]:

@@ -108,10 +108,10 @@ def pairs_grid(pos, vel, width, length, r, n_steps, x0, y0, inv_cell, nx, ny, co
     d2 = np.empty(N)
     for _ in range(n_steps):
         _move(pos, vel, width, length)
-        build_env(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        build_env(pos, (x0, y0, inv_cell, nx, ny), cell_start, order, spos, cell_of)
         for s in range(N):  # queries in cell order: neighbouring queries share cells (cache)
             i = order[s]
-            n = query_env(spos[s, 0], spos[s, 1], r, i, x0, y0, inv_cell, nx, ny, cell_start, order, spos, idx, d2)
+            n = query_env(spos[s, 0], spos[s, 1], r, i, (x0, y0, inv_cell, nx, ny), cell_start, order, spos, idx, d2)
             a = 0.0
             for k in range(n):
                 a += np.sqrt(d2[k])
@@ -152,7 +152,7 @@ def sonar_grid(pos, vel, yaw, width, length, n_steps, x0, y0, inv_cell, nx, ny, 
     spec = GridSpec(x0, y0, 1.0 / inv_cell, inv_cell, nx, ny)
     for _ in range(n_steps):
         _move(pos, vel, width, length)
-        build_env(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        build_env(pos, (x0, y0, inv_cell, nx, ny), cell_start, order, spos, cell_of)
         for s in range(N):
             i = order[s]
             _ray_dirs(yaw[i], dirs)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from .configfields import ConfigError, Section as _Section, describe_range, field_spec as _f
+from .configfields import BEHAVIOUR_KINDS, ConfigError, Section as _Section, describe_range, field_spec as _f
 from .usertext import loads_toml, suggest
 
 if sys.version_info >= (3, 11):
@@ -110,7 +110,7 @@ class BehaviourConfig(_Section):
     except ``random_walk``/``hover``, which are open-loop."""
 
     _section = "behaviour"
-    kind: str = _f("random_walk", choices=("random_walk", "hover", "attraction_repulsion"))
+    kind: str = _f("random_walk", choices=BEHAVIOUR_KINDS)  # the built-ins and every registered behaviour
     speed: float = _f(0.3, "m/s", 0.0, 50.0, doc="random walk: cruise speed")
     redraw_steps: int = _f(20, "", 1, 10**9, doc="steps between new random headings / random targets")
     wall_margin: float = _f(0.4, "m", 0.0, 100.0, doc="random walk: steer inward when closer than this to a wall")

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 from .usertext import suggest
 
-__all__ = ["ConfigError", "field_spec", "describe_range", "check_number", "coerce", "Section"]
+__all__ = ["ConfigError", "NameRegistry", "BEHAVIOUR_KINDS", "field_spec", "describe_range", "check_number", "coerce", "Section"]
 
 class ConfigError(ValueError):
     """A configuration value is wrong. The message names the key, the value and what is allowed."""
@@ -22,9 +22,67 @@ class ConfigError(ValueError):
 ConfigError.__module__ = "finkensim.config"  # its public home (``from finkensim.config import ConfigError``)
 
 
+class NameRegistry:
+    """The allowed names of a string key that a higher layer extends at run time, used as that field's ``choices``:
+    the built-in names first, then the keys of every table registered with :meth:`follow` (``behaviour.kind``: the
+    behaviour registry's table, so whatever :func:`~finkensim.behaviours.register_behaviour` adds — or a test
+    removes — is what the config accepts). The config sits below the modules that define the plug-ins, so they
+    register their table here instead of the config importing them.
+
+    Parameters
+    ----------
+    key : str
+        The dotted config key (``"behaviour.kind"``).
+    builtin : tuple of str
+        The names valid before anything registers more.
+    how : str
+        How a name gets added, for error messages (``"register_behaviour"``).
+    """
+
+    def __init__(self, key: str, builtin: tuple, how: str = ""):
+        self.key = key
+        self.builtin = tuple(builtin)
+        self.how = how
+        self._tables: list = []
+
+    def follow(self, table) -> None:
+        """Accept the keys of ``table`` (a mapping a higher layer keeps up to date) as valid values too.
+
+        Parameters
+        ----------
+        table : Mapping
+            Name → plug-in; read live, at every check.
+        """
+        if not any(t is table for t in self._tables):
+            self._tables.append(table)
+
+    def names(self) -> tuple:
+        """Every valid name: the built-ins, then the followed tables' other keys, in registration order."""
+        extra = [n for t in self._tables for n in t if n not in self.builtin]
+        return self.builtin + tuple(dict.fromkeys(extra))
+
+    def __iter__(self):
+        return iter(self.names())
+
+    def __contains__(self, name) -> bool:
+        return name in self.names()
+
+    def __len__(self) -> int:
+        return len(self.names())
+
+    def __repr__(self) -> str:
+        return f"NameRegistry({self.key!r}, {self.names()!r})"
+
+
+#: the names ``behaviour.kind`` accepts: the built-in behaviours, then every name in the behaviour registry's table
+#: (:mod:`finkensim.behaviours.registry` has it follow ``BEHAVIOURS``)
+BEHAVIOUR_KINDS = NameRegistry("behaviour.kind", ("random_walk", "hover", "attraction_repulsion"),
+                               how="finkensim.behaviours.register_behaviour")
+
+
 def field_spec(default, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc="", length=None):
     """A dataclass field with validation metadata: ``lo``/``hi`` bound numbers (inclusive unless ``*_open``);
-    ``choices`` lists allowed strings; ``length`` fixes the length of a tuple field (None = any length)."""
+    ``choices`` lists allowed strings (a :class:`NameRegistry` when other layers add names); ``length`` fixes the length of a tuple field (None = any length)."""
     meta = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc, length=length)
     if isinstance(default, (list, tuple)):
         return field(default_factory=lambda d=tuple(default): d, metadata=meta)
@@ -35,7 +93,8 @@ def describe_range(meta) -> str:
     """The allowed values of a field as text ("one of 'a', 'b'", ">= 0 and <= 1 m"), from its metadata."""
     parts = []
     if meta["choices"] is not None:
-        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+        how = getattr(meta["choices"], "how", "")
+        return "one of " + ", ".join(repr(c) for c in meta["choices"]) + (f" (more with {how})" if how else "")
     if meta["lo"] is not None:
         parts.append((">" if meta["lo_open"] else ">=") + f" {meta['lo']}")
     if meta["hi"] is not None:

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from .config import ArenaConfig, CopterConfig
-from .kernels.cellgrid import any_within_env, build_env
+from .kernels.cellgrid import any_within_env, build_env, grid_layout
 
 
 class CopterParams(NamedTuple):
@@ -70,7 +70,7 @@ def wrap_angle(a):
 
 
 @njit(cache=True, inline="always")
-def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
+def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, copter, dt):
     """Advance one copter in place. pos, vel, acc, cmd_v: (2,) arrays; yaw, yaw_rate, cmd_w: floats.
 
     Writes the world-frame acceleration of the step into ``acc`` (m/s²): the velocity change over
@@ -80,45 +80,45 @@ def move_copter(pos, vel, yaw, yaw_rate, acc, cmd_v, cmd_w, cp, dt):
     v0x = vel[0]
     v0y = vel[1]
     cx, cy = cmd_v[0], cmd_v[1]
-    sp = np.sqrt(cx * cx + cy * cy)
-    if sp > cp.max_speed:
-        cx *= cp.max_speed / sp
-        cy *= cp.max_speed / sp
-    k = _lag_factor(cp.velocity_tau, dt)
+    speed = np.sqrt(cx * cx + cy * cy)
+    if speed > copter.max_speed:
+        cx *= copter.max_speed / speed
+        cy *= copter.max_speed / speed
+    k = _lag_factor(copter.velocity_tau, dt)
     ax = (cx - vel[0]) * k / dt
     ay = (cy - vel[1]) * k / dt
     an = np.sqrt(ax * ax + ay * ay)
-    if an > cp.max_accel:
-        ax *= cp.max_accel / an
-        ay *= cp.max_accel / an
+    if an > copter.max_accel:
+        ax *= copter.max_accel / an
+        ay *= copter.max_accel / an
     vel[0] += ax * dt
     vel[1] += ay * dt
     pos[0] += vel[0] * dt
     pos[1] += vel[1] * dt
-    r = cp.radius
+    r = copter.radius
     clamped = False
     if pos[0] < r:
         pos[0] = r
         vel[0] = max(vel[0], 0.0)
         clamped = True
-    elif pos[0] > cp.width - r:
-        pos[0] = cp.width - r
+    elif pos[0] > copter.width - r:
+        pos[0] = copter.width - r
         vel[0] = min(vel[0], 0.0)
         clamped = True
     if pos[1] < r:
         pos[1] = r
         vel[1] = max(vel[1], 0.0)
         clamped = True
-    elif pos[1] > cp.length - r:
-        pos[1] = cp.length - r
+    elif pos[1] > copter.length - r:
+        pos[1] = copter.length - r
         vel[1] = min(vel[1], 0.0)
         clamped = True
     acc[0] = (vel[0] - v0x) / dt
     acc[1] = (vel[1] - v0y) / dt
     # exactly 0 when clamped: W − (W − r) − r need not round to 0
-    gap = 0.0 if clamped else min(min(pos[0], cp.width - pos[0]), min(pos[1], cp.length - pos[1])) - r
-    w_cmd = min(cp.max_yaw_rate, max(-cp.max_yaw_rate, cmd_w))
-    yaw_rate += (w_cmd - yaw_rate) * _lag_factor(cp.yaw_tau, dt)
+    gap = 0.0 if clamped else min(min(pos[0], copter.width - pos[0]), min(pos[1], copter.length - pos[1])) - r
+    w_cmd = min(copter.max_yaw_rate, max(-copter.max_yaw_rate, cmd_w))
+    yaw_rate += (w_cmd - yaw_rate) * _lag_factor(copter.yaw_tau, dt)
     yaw = wrap_angle(yaw + yaw_rate * dt)
     return yaw, yaw_rate, max(0.0, gap)
 
@@ -130,27 +130,26 @@ WALL_RELEASE_GAP = 0.02  # m
 
 
 @njit(cache=True, inline="always")
-def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collision, collisions, gp, grid):
+def update_contacts_env(pos, radius, wall_gap, in_wall, wall_contacts, in_collision, collisions, grid, cells):
     """Count contact onsets for one environment (N copters) in place.
 
     wall_gap (N,) m: body-to-wall distance this step (0 = touching). A wall contact begins at
     gap 0 and ends when the gap exceeds :data:`WALL_RELEASE_GAP`. Updates in_wall/in_collision
     flags and increments wall_contacts/collisions (N,) where a contact begins. Two copters touch when their
-    centres are closer than 2·radius. gp: a :class:`~finkensim.kernels.cellgrid.GridParams` (or a record with
+    centres are closer than 2·radius. grid: a :class:`~finkensim.kernels.cellgrid.GridParams` (or a record with
     its fields, such as :class:`~finkensim.kernels.cellgrid.EngineGrid`); when on, the
-    overlaps are found with the cell grid in ``grid`` = (cell_start, order, spos, cell_of) of this environment
+    overlaps are found with the cell grid in ``cells`` = (cell_start, order, spos, cell_of) of this environment
     (rebuilt here), else by the brute force — the same test either way.
     """
     N = pos.shape[0]
     lim2 = (2.0 * radius) ** 2
-    if gp.on:
-        cell_start, order, spos, cell_of = grid[0], grid[1], grid[2], grid[3]
-        build_env(pos, gp.x0, gp.y0, gp.inv_cell, gp.nx, gp.ny, cell_start, order, spos, cell_of)
+    if grid.on:
+        cell_start, order, spos, cell_of = cells[0], cells[1], cells[2], cells[3]
+        build_env(pos, grid_layout(grid), cell_start, order, spos, cell_of)
     for i in range(N):
         overlap = False
-        if gp.on:
-            overlap = any_within_env(pos[i, 0], pos[i, 1], 2.0 * radius, i, gp.x0, gp.y0, gp.inv_cell, gp.nx,
-                                     gp.ny, cell_start, order, spos)
+        if grid.on:
+            overlap = any_within_env(pos[i, 0], pos[i, 1], 2.0 * radius, i, grid_layout(grid), cell_start, order, spos)
         else:
             # every pair tested, no early exit: whether two copters touch is unpredictable near the walls
             for j in range(N):

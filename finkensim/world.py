@@ -39,7 +39,7 @@ from .kernels.threads import run_ranges
 
 
 @njit(cache=True)
-def walls_from_positions(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dist_out):
+def walls_from_positions(pos, t, seg_a, seg_b, radius, hinge, lever, theta_out, dist_out):
     """Plate angles theta_out (T, S) rad of walls driven by given (e.g. logged) copter positions pos (T, N, 2) m at
     times t (T,) s, as in a simulation (sample k holds the plates after responding to the positions of samples
     1 … k), and each plate's distance to the nearest copter body dist_out (T, S) m. The gap diagnosis replays logged
@@ -53,7 +53,7 @@ def walls_from_positions(pos, t, seg_a, seg_b, radius, hp, lever, theta_out, dis
     for k in range(T):
         nearest_body_distance_env(seg_a, seg_b, pos[k], radius, dist)
         if k > 0:
-            walls_step_env(theta, omega, integ, dist, hp, lever, t[k] - t[k - 1])
+            walls_step_env(theta, omega, integ, dist, hinge, lever, t[k] - t[k - 1])
         for s in range(S):
             theta_out[k, s] = theta[s]
             dist_out[k, s] = dist[s]
@@ -144,19 +144,21 @@ class Trajectory:
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
+def step_env(w, b, cmd_v, cmd_w, bodies, dt, work, grid, cells):
     """Advance environment b of the :class:`WorldState` ``w`` by dt s in place: copters move, contacts
     are counted, plates respond.
 
-    cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; cp
-    :class:`~finkensim.copters.CopterParams`, hp :class:`~finkensim.arena.HingeParams`, geo
-    :class:`~finkensim.arena.WallGeometry`; dist_buf (S,) and gap_buf (N,) are work buffers; g (an
-    :class:`~finkensim.kernels.cellgrid.EngineGrid`) and grid (this environment's buffers of it,
+    cmd_v (N, 2) m/s world frame and cmd_w (N,) rad/s are environment b's commands; bodies = (copter
+    :class:`~finkensim.copters.CopterParams`, hinge :class:`~finkensim.arena.HingeParams`, geometry
+    :class:`~finkensim.arena.WallGeometry`); work = (dist_buf (S,), gap_buf (N,)): work buffers; grid (an
+    :class:`~finkensim.kernels.cellgrid.EngineGrid`) and cells (this environment's buffers of it,
     :func:`~finkensim.kernels.cellgrid.env_grid`) serve the copter contacts. The plates need the
     nearest-body distance only below max(threshold, lever): farther, a plate is inactive and its
     contact cap is 90° whatever the distance, so dist_buf holds the exact distances below that and inf
     above (:func:`~finkensim.kernels.geometry.nearest_body_distance_within_env`).
     """
+    copter, hinge, geometry = bodies
+    dist_buf, gap_buf = work
     pos = w.pos[b]
     vel = w.vel[b]
     acc = w.acc[b]
@@ -164,24 +166,24 @@ def step_env(w, b, cmd_v, cmd_w, cp, hp, geo, dt, dist_buf, gap_buf, g, grid):
     yaw_rate = w.yaw_rate[b]
     for n in range(pos.shape[0]):
         yaw[n], yaw_rate[n], gap_buf[n] = move_copter(
-            pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], cp, dt)
-    update_contacts_env(pos, cp.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
-                        w.collisions[b], g, grid)
-    cutoff = max(hp.threshold, geo.lever, hp.bulge_cutoff)  # the bulge's (0 without one) reaches farther
-    nearest_body_distance_within_env(geo.seg_a, geo.seg_b, pos, cp.radius, cutoff, dist_buf)
-    walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hp, geo.lever, dt)
+            pos[n], vel[n], yaw[n], yaw_rate[n], acc[n], cmd_v[n], cmd_w[n], copter, dt)
+    update_contacts_env(pos, copter.radius, gap_buf, w.in_wall[b], w.wall_contacts[b], w.in_collision[b],
+                        w.collisions[b], grid, cells)
+    cutoff = max(hinge.threshold, geometry.lever, hinge.bulge_cutoff)  # the bulge's (0 without one) reaches farther
+    nearest_body_distance_within_env(geometry.seg_a, geometry.seg_b, pos, copter.radius, cutoff, dist_buf)
+    walls_step_env(w.theta[b], w.omega[b], w.integ[b], dist_buf, hinge, geometry.lever, dt)
     if w.bulge.shape[1] > 0:
-        bulge_step_env(w.bulge[b], dist_buf, hp, dt, False)
+        bulge_step_env(w.bulge[b], dist_buf, hinge, dt, False)
 
 
 @njit(cache=True, parallel=True)
-def _step_batch(w, cmd_v, cmd_w, cp, hp, geo, dt, g):
+def _step_batch(w, cmd_v, cmd_w, copter, hinge, geometry, dt, grid):
     """One step of every environment of ``w`` (:class:`WorldState`) in place; cmd_v (B, N, 2), cmd_w (B, N);
-    g: the :class:`~finkensim.kernels.cellgrid.EngineGrid` of the batch."""
+    grid: the :class:`~finkensim.kernels.cellgrid.EngineGrid` of the batch."""
     for b in prange(w.pos.shape[0]):
-        dist_buf = np.empty(geo.seg_a.shape[0])
+        dist_buf = np.empty(geometry.seg_a.shape[0])
         gap_buf = np.empty(w.pos.shape[1])
-        step_env(w, b, cmd_v[b], cmd_w[b], cp, hp, geo, dt, dist_buf, gap_buf, g, env_grid(g, b))
+        step_env(w, b, cmd_v[b], cmd_w[b], (copter, hinge, geometry), dt, (dist_buf, gap_buf), grid, env_grid(grid, b))
 
 
 @njit(cache=True, nogil=True)

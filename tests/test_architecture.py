@@ -11,7 +11,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "finkensim"
 SOURCES = sorted(PACKAGE.rglob("*.py"))
 MAX_LINES = 500
 MAX_PARAMS = 16
-#: the engine's kernels (finkensim/swarm/) take a handful of records (docs/architecture.md, "The engine")
+#: numba kernels anywhere and every function of the engine (finkensim/swarm/) take a handful of records
+#: (docs/architecture.md, "The engine")
 MAX_ENGINE_PARAMS = 10
 
 
@@ -40,14 +41,58 @@ def test_functions_take_at_most_16_parameters():
     assert not wide, f"functions with more than {MAX_PARAMS} parameters: {wide}"
 
 
+def _n_params(node) -> int:
+    a = node.args
+    return len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+
+
+#: what compiles a Python function with numba: its decorators, and the package's own wrapper that re-jits one
+#: (``kernels/twin.py``)
+COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil", "twin"}
+
+
+def _callee_name(node) -> str:
+    """The bare name a decorator or call refers to: ``njit``, ``numba.njit`` and ``njit(cache=True)`` all give njit."""
+    if isinstance(node, ast.Call):
+        node = node.func
+    if isinstance(node, ast.Attribute):
+        return node.attr
+    return node.id if isinstance(node, ast.Name) else ""
+
+
+def _compiled_functions(tree: ast.Module) -> list:
+    """Functions numba compiles: decorated with a :data:`COMPILERS` name, or passed by name to one
+    (``f_twin = twin(f)``, ``njit(cache=True)(f)``)."""
+    passed = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and _callee_name(node) in COMPILERS | {""}:
+            outer = node.func if isinstance(node.func, ast.Call) else node
+            if _callee_name(outer) in COMPILERS:
+                passed |= {a.id for a in node.args if isinstance(a, ast.Name)}
+    return [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and (any(_callee_name(d) in COMPILERS for d in node.decorator_list) or node.name in passed)]
+
+
+def test_numba_kernels_take_at_most_10_parameters():
+    """Every numba-compiled function of the package takes a handful of records and arrays (docs/architecture.md,
+    "The engine"), not dozens of loose ones; plain Python API functions with keyword options keep the 16 ceiling."""
+    wide = []
+    found = 0
+    for p in SOURCES:
+        for node in _compiled_functions(_tree(p)):
+            found += 1
+            if (n := _n_params(node)) > MAX_ENGINE_PARAMS:
+                wide.append(f"{_rel(p)}:{node.lineno} {node.name} ({n})")
+    assert found > 100, f"only {found} compiled functions found: the detection of numba decorators broke"
+    assert not wide, f"numba kernels with more than {MAX_ENGINE_PARAMS} parameters: {wide}"
+
+
 def test_engine_functions_take_at_most_10_parameters():
     wide = []
     for p in sorted((PACKAGE / "swarm").glob("*.py")):
         for node in ast.walk(_tree(p)):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                a = node.args
-                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
-                if n > MAX_ENGINE_PARAMS:
+                if (n := _n_params(node)) > MAX_ENGINE_PARAMS:
                     wide.append(f"{_rel(p)}:{node.lineno} {node.name} ({n})")
     assert not wide, f"engine functions with more than {MAX_ENGINE_PARAMS} parameters: {wide}"
 

@@ -216,9 +216,9 @@ def test_per_environment_kernels_compose_in_a_compiled_loop():
         d2 = np.empty(N)
         out = np.zeros((T, N), dtype=np.int64)
         for t in range(T):
-            cg.build_env(pos_steps[t], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+            cg.build_env(pos_steps[t], (x0, y0, inv_cell, nx, ny), cell_start, order, spos, cell_of)
             for i in range(N):
-                out[t, i] = cg.query_env(pos_steps[t, i, 0], pos_steps[t, i, 1], r, i, x0, y0, inv_cell, nx, ny,
+                out[t, i] = cg.query_env(pos_steps[t, i, 0], pos_steps[t, i, 1], r, i, (x0, y0, inv_cell, nx, ny),
                                          cell_start, order, spos, idx, d2)
         return out
 

@@ -93,7 +93,8 @@ def _ranging(pos, beacons, p, g, out):
     # the engine's compiled ranging_grid_env (its twin, with the argument types swarm_env passes): the code under
     # test, compiled once for the engine and this test (inlining it here cost ≈ 25 s of cold compile)
     for b in range(pos.shape[0]):
-        ranging_twin(pos[b], np.zeros(pos.shape[1]), beacons, np.int64(7), np.int64(b), np.int64(3), p, out[b], g, env_grid(g, b), True)
+        ranging_twin(pos[b], np.zeros(pos.shape[1]), beacons, (np.int64(7), np.int64(b), np.int64(3)), p, out[b], g,
+                     env_grid(g, b), True)
 
 
 @pytest.fixture(scope="module")

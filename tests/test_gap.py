@@ -30,6 +30,7 @@ from finkensim.sensors.sonar_kernels import measured_reading
 from finkensim.sensors.sonar_model import (CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, sonar_scalars,
                                            wall_geometry)
 from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
+from finkensim.sensors.tracking import draw_poses
 from tests.naive import gap as naive
 from tests.stats import assert_above_se, assert_mean_within_se, assert_proportion_within_se, se_mean
 
@@ -221,7 +222,7 @@ def test_pose_draws_from_the_normal_table_equal_the_keyed_draws(seed, sx, sy):
     for ti, k in enumerate(times):
         for m in range(G):
             p1, w1, p2, w2 = np.empty((N, 2)), np.empty(N), np.empty((N, 2)), np.empty(N)
-            rp.draw_poses(pos, yaw, k, m, noise, p1, w1)
+            draw_poses(pos, yaw, k, m, noise, p1, w1)
             rp.draw_poses_from(pos, yaw, k, z[ti, m], sx, sy, p2, w2)
             assert p1.tobytes() == p2.tobytes() and w1.tobytes() == w2.tobytes()
 

@@ -70,6 +70,34 @@ def test_a_toy_behaviour_added_as_the_recipe_says_flies_in_the_compiled_engine()
         BEHAVIOURS.pop("drift", None)
 
 
+def test_a_registered_behaviour_is_selectable_from_a_toml_config(tmp_path):
+    """docs/architecture.md: once registered, the recipe's name is a valid behaviour.kind in a TOML file; unknown
+    names are refused with the registered ones listed and a did-you-mean."""
+    from finkensim.config import load_config
+    from finkensim.swarm import SwarmSim
+
+    toml = tmp_path / "drift.toml"
+    toml.write_text('[behaviour]\nkind = "drift"      # SwarmSim(load_config("drift.toml")) flies DRIFT\n'
+                    '[sonar]\nenabled = true      # the sensors it declares\n')
+    with pytest.raises(ConfigError, match="behaviour.kind = 'drift': expected one of 'random_walk', 'hover', "
+                                          "'attraction_repulsion'.*register_behaviour"):
+        load_config(toml)  # not registered yet
+    register_behaviour(DRIFT, replace=True)
+    try:
+        cfg = load_config(toml)
+        assert cfg.behaviour.kind == "drift"
+        sim = SwarmSim(cfg)
+        assert sim.behaviour is DRIFT
+        final, _ = sim.rollout(sim.init(n_envs=1, seed=0), 5, record=("pose",))
+        np.testing.assert_array_equal(final.behaviour.commands[..., 0], 5.0)  # DRIFT's memory: it flew
+        with pytest.raises(ConfigError, match=r"expected one of .*'drift'.*did you mean 'drift'\?"):
+            load_config({"behaviour": {"kind": "drfit"}})
+    finally:
+        BEHAVIOURS.pop("drift", None)
+    with pytest.raises(ConfigError, match="behaviour.kind = 'drift'"):
+        load_config(toml)  # gone with it from the table
+
+
 # --- the checkers catch broken plug-ins ---------------------------------------------------------------------------
 
 @njit

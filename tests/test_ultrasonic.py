@@ -404,8 +404,9 @@ def _culled_vs_full(ox, oy, dx, dy, pos_b, radius, pa, pb, width, length):
     out = np.empty((ox.shape[0], 4))
     for i in range(ox.shape[0]):
         everyone = np.empty(0, dtype=np.int64)
-        t1, k1 = cast_ray_culled(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, bands, everyone, -1)
-        t2, k2 = cast_ray(ox[i], oy[i], dx[i], dy[i], 0, pos_b, radius, pa, pb, width, length, everyone, -1)
+        ray = (ox[i], oy[i], dx[i], dy[i])
+        t1, k1 = cast_ray_culled(ray, 0, pos_b, radius, (pa, pb, width, length), bands, everyone, -1)
+        t2, k2 = cast_ray(ray, 0, pos_b, radius, (pa, pb, width, length), everyone, -1)
         out[i, 0] = t1
         out[i, 1] = k1
         out[i, 2] = t2

@@ -98,34 +98,34 @@ def random_target_env(seed, env_id, step, n, redraw_steps, target_distance):
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def attraction_env(sonar_b, wall_b, seed, env_id, step, ap, cmd_v, cmd_w):
+def attraction_env(sonar_b, wall_b, seed, env_id, step, attraction, cmd_v, cmd_w):
     """Commands of one environment. sonar_b (N, 4) m, wall_b (N, 4) bool → cmd_v (N, 2) m/s body frame,
     cmd_w (N,) rad/s (always 0)."""
-    inv_c = 1.0 / ap.c
+    inv_c = 1.0 / attraction.c
     # the arrays taken out of the record once: reading them from it inside the loop, or passing the record to an
     # inlined function there, costs atomic reference counting on every use
-    mount_cos = ap.mount_cos
-    mount_sin = ap.mount_sin
+    mount_cos = attraction.mount_cos
+    mount_sin = attraction.mount_sin
     for n in range(sonar_b.shape[0]):
         dx = 0.0
         dy = 0.0
         for k in range(sonar_b.shape[1]):
             r = sonar_b[n, k]
-            if r >= ap.max_range:
+            if r >= attraction.max_range:
                 continue  # no echo: no object
             px = r * mount_cos[k]
             py = r * mount_sin[k]
-            f = -ap.b * np.exp(-(px * px + py * py) * inv_c)
+            f = -attraction.b * np.exp(-(px * px + py * py) * inv_c)
             if not wall_b[n, k]:
-                f += ap.a
+                f += attraction.a
             dx += px * f
             dy += py * f
-        tx, ty = random_target_env(seed, env_id, step, n, ap.redraw_steps, ap.target_distance)
-        vx = ap.gain * (ap.w_c * dx + ap.w_t * ap.a * tx)
-        vy = ap.gain * (ap.w_c * dy + ap.w_t * ap.a * ty)
-        sp = np.sqrt(vx * vx + vy * vy)
-        if sp > ap.max_speed:
-            s = ap.max_speed / sp
+        tx, ty = random_target_env(seed, env_id, step, n, attraction.redraw_steps, attraction.target_distance)
+        vx = attraction.gain * (attraction.w_c * dx + attraction.w_t * attraction.a * tx)
+        vy = attraction.gain * (attraction.w_c * dy + attraction.w_t * attraction.a * ty)
+        speed = np.sqrt(vx * vx + vy * vy)
+        if speed > attraction.max_speed:
+            s = attraction.max_speed / speed
             vx *= s
             vy *= s
         cmd_v[n, 0] = vx
@@ -146,9 +146,9 @@ def body_to_world_env(yaw_b, v_body, v_world):
 
 
 @njit(cache=True, parallel=True)
-def _attraction_batch(sonar, wall, seed, env_ids, step, ap, cmd_v, cmd_w):
+def _attraction_batch(sonar, wall, seed, env_ids, step, attraction, cmd_v, cmd_w):
     for b in prange(sonar.shape[0]):
-        attraction_env(sonar[b], wall[b], seed, env_ids[b], step, ap, cmd_v[b], cmd_w[b])
+        attraction_env(sonar[b], wall[b], seed, env_ids[b], step, attraction, cmd_v[b], cmd_w[b])
 
 
 @njit(cache=True, parallel=True)

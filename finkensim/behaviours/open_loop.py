@@ -25,11 +25,11 @@ OPEN_LOOP_BEHAVIOURS = ("random_walk", "hover")
 
 
 @njit(cache=True, parallel=True)
-def random_walk_batch(pos, seed, env_ids, step, rw, cmd_v, cmd_w):
+def random_walk_batch(pos, seed, env_ids, step, random_walk, cmd_v, cmd_w):
     """Random-walk commands of B environments at world step ``step``: pos (B, N, 2) m, env_ids (B,) int64,
-    rw :class:`RandomWalkParams` → writes cmd_v (B, N, 2) m/s and cmd_w (B, N) rad/s."""
+    random_walk :class:`RandomWalkParams` → writes cmd_v (B, N, 2) m/s and cmd_w (B, N) rad/s."""
     for b in prange(pos.shape[0]):
-        random_walk_env(pos[b], seed, env_ids[b], step, rw, cmd_v[b], cmd_w[b])
+        random_walk_env(pos[b], seed, env_ids[b], step, random_walk, cmd_v[b], cmd_w[b])
 
 
 class RandomWalk:

@@ -27,23 +27,23 @@ class RandomWalkParams(NamedTuple):
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def random_walk_env(pos, seed, env_id, step, rw, cmd_v, cmd_w):
+def random_walk_env(pos, seed, env_id, step, random_walk, cmd_v, cmd_w):
     """Commands for one environment. pos (N, 2) m → writes cmd_v (N, 2) m/s and cmd_w (N,) rad/s."""
-    epoch = step // rw.redraw_steps
+    epoch = step // random_walk.redraw_steps
     for n in range(pos.shape[0]):
         key = counter_key(seed, env_id, epoch, n, STREAM_COMMAND)
         heading = 2.0 * np.pi * uniform(key, 0)
-        vx = rw.speed * np.cos(heading)
-        vy = rw.speed * np.sin(heading)
+        vx = random_walk.speed * np.cos(heading)
+        vy = random_walk.speed * np.sin(heading)
         # bounded: near a wall, the component toward it is reversed
-        if pos[n, 0] < rw.wall_margin and vx < 0.0:
+        if pos[n, 0] < random_walk.wall_margin and vx < 0.0:
             vx = -vx
-        elif pos[n, 0] > rw.width - rw.wall_margin and vx > 0.0:
+        elif pos[n, 0] > random_walk.width - random_walk.wall_margin and vx > 0.0:
             vx = -vx
-        if pos[n, 1] < rw.wall_margin and vy < 0.0:
+        if pos[n, 1] < random_walk.wall_margin and vy < 0.0:
             vy = -vy
-        elif pos[n, 1] > rw.length - rw.wall_margin and vy > 0.0:
+        elif pos[n, 1] > random_walk.length - random_walk.wall_margin and vy > 0.0:
             vy = -vy
         cmd_v[n, 0] = vx
         cmd_v[n, 1] = vy
-        cmd_w[n] = rw.max_yaw_rate * (2.0 * uniform(key, 1) - 1.0)
+        cmd_w[n] = random_walk.max_yaw_rate * (2.0 * uniform(key, 1) - 1.0)

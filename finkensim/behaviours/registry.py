@@ -26,6 +26,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from ..config import ConfigError
+from ..configfields import BEHAVIOUR_KINDS
 from ..usertext import suggest
 
 __all__ = ["Behaviour", "BehaviourInput", "NoParams", "BEHAVIOURS", "SENSORS", "register_behaviour",
@@ -134,6 +135,7 @@ class Behaviour:
 
 #: name → :class:`Behaviour`: every behaviour the engine can fly (built-ins first, then registered ones)
 BEHAVIOURS: dict[str, Behaviour] = {}
+BEHAVIOUR_KINDS.follow(BEHAVIOURS)  # the config's behaviour.kind accepts every name in it (TOML or Python)
 
 
 def register_behaviour(behaviour: Behaviour, replace: bool = False) -> Behaviour:
@@ -155,7 +157,7 @@ def register_behaviour(behaviour: Behaviour, replace: bool = False) -> Behaviour
         raise ConfigError(f"register_behaviour({behaviour!r}): expected a finkensim.behaviours.Behaviour")
     if behaviour.name in BEHAVIOURS and not replace and BEHAVIOURS[behaviour.name] is not behaviour:
         raise ConfigError(f"behaviour {behaviour.name!r} is registered already: pass replace=True to replace it")
-    BEHAVIOURS[behaviour.name] = behaviour
+    BEHAVIOURS[behaviour.name] = behaviour  # now valid as behaviour.kind in a config too (BEHAVIOUR_KINDS follows it)
     return behaviour
 
 

@@ -57,7 +57,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..config import Config, ConfigError
-from ..kernels.cellgrid import NO_GRID, no_grid_buffers, query_env
+from ..kernels.cellgrid import NO_GRID, grid_layout, no_grid_buffers, query_env
 from ..sensors.ranging_kernels import ranging_reach
 
 __all__ = ["WALL_CHECK_NONE", "WALL_CHECK_PER_READING", "WALL_CHECK_SEQUENCE", "WALL_CHECK_CODES",
@@ -151,59 +151,59 @@ class BehaviourState(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _matches(e, rho, wp):
+def _matches(e, rho, wall_check):
     """Whether a ranging reading rho (m) matches the centre-distance estimate e (m) of a sonar reading."""
-    if rho >= wp.ranging_max_range:
-        return e >= wp.ranging_max_range - wp.epsilon
-    return abs(e - rho) <= wp.epsilon
+    if rho >= wall_check.ranging_max_range:
+        return e >= wall_check.ranging_max_range - wall_check.epsilon
+    return abs(e - rho) <= wall_check.epsilon
 
 
 @njit(cache=True, inline="always")
-def reading_fails(r, rng_row, self_n, wp, cand, n_cand, n_copters):
-    """True if sonar reading r (m) is an echo that matches no ranging reading in rng_row (N + M,) m.
+def reading_fails(r, ranging_row, self_n, wall_check, cand, n_cand, n_copters):
+    """True if sonar reading r (m) is an echo that matches no ranging reading in ranging_row (N + M,) m.
 
     n_cand < 0: every column is tested. Else the copter columns outside cand[:n_cand] are known to read exactly
     ``ranging.max_range`` (the ranging drew only the copters the grid found in range,
     :func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`): they match alike, so one test stands for all of
     them; the candidates and the n_copters… beacon columns are tested one by one. The same answer either way.
     """
-    if r >= wp.sonar_max_range:
+    if r >= wall_check.sonar_max_range:
         return False
-    e = r + wp.rim
+    e = r + wall_check.rim
     if n_cand < 0:
-        for j in range(rng_row.shape[0]):
-            if j != self_n and _matches(e, rng_row[j], wp):
+        for j in range(ranging_row.shape[0]):
+            if j != self_n and _matches(e, ranging_row[j], wall_check):
                 return False
         return True
-    if n_copters - 1 - n_cand > 0 and _matches(e, wp.ranging_max_range, wp):
+    if n_copters - 1 - n_cand > 0 and _matches(e, wall_check.ranging_max_range, wall_check):
         return False
     for c in range(n_cand):
-        if _matches(e, rng_row[cand[c]], wp):
+        if _matches(e, ranging_row[cand[c]], wall_check):
             return False
-    for j in range(n_copters, rng_row.shape[0]):
-        if _matches(e, rng_row[j], wp):
+    for j in range(n_copters, ranging_row.shape[0]):
+        if _matches(e, ranging_row[j], wall_check):
             return False
     return True
 
 
 @njit(cache=True, inline="always")
-def per_reading_env(sonar_b, rng_b, wp, fail_out, near):
-    """Per-reading check of one environment: sonar_b (N, 4) m, rng_b (N, N + M) m → fail_out (N, 4) bool.
+def per_reading_env(sonar_b, ranging_b, wall_check, fail_out, near):
+    """Per-reading check of one environment: sonar_b (N, 4) m, ranging_b (N, N + M) m → fail_out (N, 4) bool.
 
-    near = (pos_b (N, 2) m, g, grid, on): with ``on`` (the ranging ran on the engine's cell grid ``g`` this step,
+    near = (pos_b (N, 2) m, grid, cells, on): with ``on`` (the ranging ran on the engine's cell grid ``grid`` this step,
     :func:`~finkensim.sensors.ranging_kernels.ranging_grid_env`), each copter's columns in range are found again
-    on the grid (``grid``: this environment's buffers, built for the same positions) instead of scanning all N + M.
+    on the grid (``cells``: this environment's buffers, built for the same positions) instead of scanning all N + M.
     """
-    pos_b, g, grid, on = near
+    pos_b, grid, cells, on = near
     N = sonar_b.shape[0]
-    reach = ranging_reach(wp.ranging_max_range)
+    reach = ranging_reach(wall_check.ranging_max_range)
     for n in range(N):
         n_cand = -1
         if on:
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, grid[0],
-                               grid[1], grid[2], grid[4], grid[5])
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, grid_layout(grid), cells[0], cells[1], cells[2],
+                               cells[4], cells[5])
         for k in range(sonar_b.shape[1]):
-            fail_out[n, k] = reading_fails(sonar_b[n, k], rng_b[n], n, wp, grid[4], n_cand, N)
+            fail_out[n, k] = reading_fails(sonar_b[n, k], ranging_b[n], n, wall_check, cells[4], n_cand, N)
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
@@ -226,7 +226,7 @@ def dead_reckon_env(acc_b, gyro_b, dt, dr_pos, dr_vel, dr_yaw):
 
 
 @njit(cache=True, inline="always")
-def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
+def sequence_env(fail_b, dr_pos, dr_yaw, wall_check, count, wall, anchor, onsets):
     """Sequence check of one environment, in place: release flags the dead reckoning clears, then count
     failures fail_b (N, 4) and flag sonars reaching ``fail_count``; onsets (N,) counts new flags."""
     for n in range(fail_b.shape[0]):
@@ -234,8 +234,8 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
             if wall[n, k]:
                 mx = dr_pos[n, 0] - anchor[n, k, 0]
                 my = dr_pos[n, 1] - anchor[n, k, 1]
-                if np.sqrt(mx * mx + my * my) >= wp.release_distance or \
-                        abs(dr_yaw[n] - anchor[n, k, 2]) >= wp.release_angle:
+                if np.sqrt(mx * mx + my * my) >= wall_check.release_distance or \
+                        abs(dr_yaw[n] - anchor[n, k, 2]) >= wall_check.release_angle:
                     wall[n, k] = False
                     count[n, k] = 0
             if not wall[n, k]:
@@ -243,7 +243,7 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
                     count[n, k] += 1
                 else:
                     count[n, k] = 0
-                if count[n, k] >= wp.fail_count:
+                if count[n, k] >= wall_check.fail_count:
                     wall[n, k] = True
                     count[n, k] = 0
                     anchor[n, k, 0] = dr_pos[n, 0]
@@ -253,28 +253,33 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wp, count, wall, anchor, onsets):
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr_yaw, onsets, wall_readings, near):
-    """The configured check (``wp.mode``) for one environment; updates the memory and the wall flags
-    wall (N, 4) in place. fail_buf (N, 4) bool is a work buffer (left holding the per-reading result); near: as
-    :func:`per_reading_env`."""
+def wall_check_env(sonar_b, ranging_b, wall_check, fail_buf, memory, b, near):
+    """The configured check (``wall_check.mode``) for environment b; updates its part of ``memory`` (a
+    :class:`BehaviourState`: fail counters, flags, anchors, counters; reads the dead reckoning) and its wall flags
+    memory.wall[b] (N, 4) in place. fail_buf (N, 4) bool is a work buffer (left holding the per-reading result);
+    near: as :func:`per_reading_env`."""
+    wall = memory.wall[b]
+    onsets = memory.wall_onsets[b]
     N, K = sonar_b.shape
-    if wp.mode == WALL_CHECK_NONE:
+    if wall_check.mode == WALL_CHECK_NONE:
         for n in range(N):
             for k in range(K):
                 wall[n, k] = False
         return
-    per_reading_env(sonar_b, rng_b, wp, fail_buf, near)
-    if wp.mode == WALL_CHECK_PER_READING:
+    per_reading_env(sonar_b, ranging_b, wall_check, fail_buf, near)
+    if wall_check.mode == WALL_CHECK_PER_READING:
         for n in range(N):
             for k in range(K):
                 if fail_buf[n, k] and not wall[n, k]:
                     onsets[n] += 1
                 wall[n, k] = fail_buf[n, k]
     else:
-        sequence_env(fail_buf, dr_pos, dr_yaw, wp, count, wall, anchor, onsets)
+        sequence_env(fail_buf, memory.dr_pos[b], memory.dr_yaw[b], wall_check, memory.fail_count[b], wall, memory.anchor[b],
+                     onsets)
+    wall_readings = memory.wall_readings[b]
     for n in range(N):
         for k in range(K):
-            if wall[n, k] and sonar_b[n, k] < wp.sonar_max_range:
+            if wall[n, k] and sonar_b[n, k] < wall_check.sonar_max_range:
                 wall_readings[n] += 1
 
 
@@ -284,14 +289,14 @@ def wall_check_env(sonar_b, rng_b, wp, fail_buf, count, wall, anchor, dr_pos, dr
 
 @njit(cache=True, inline="always")
 def _no_grid(n):
-    """``near`` of :func:`per_reading_env` without a grid (every column is scanned)."""
+    """``near`` of :func:`per_reading_env` without a cells (every column is scanned)."""
     return (np.empty((n, 2)), NO_GRID, no_grid_buffers(), False)
 
 
 @njit(cache=True, parallel=True)
-def _per_reading_batch(sonar, rng, wp, out):
+def _per_reading_batch(sonar, ranging, wall_check, out):
     for b in prange(sonar.shape[0]):
-        per_reading_env(sonar[b], rng[b], wp, out[b], _no_grid(sonar.shape[1]))
+        per_reading_env(sonar[b], ranging[b], wall_check, out[b], _no_grid(sonar.shape[1]))
 
 
 @njit(cache=True, parallel=True)
@@ -301,18 +306,17 @@ def _dead_reckon_batch(acc, gyro, dt, dr_pos, dr_vel, dr_yaw):
 
 
 @njit(cache=True, parallel=True)
-def _wall_check_batch(sonar, rng, wp, count, wall, anchor, dr_pos, dr_yaw, onsets, wall_readings):
+def _wall_check_batch(sonar, ranging, wall_check, memory):
     for b in prange(sonar.shape[0]):
         fail_buf = np.empty(sonar.shape[1:], dtype=np.bool_)
-        wall_check_env(sonar[b], rng[b], wp, fail_buf, count[b], wall[b], anchor[b], dr_pos[b], dr_yaw[b],
-                       onsets[b], wall_readings[b], _no_grid(sonar.shape[1]))
+        wall_check_env(sonar[b], ranging[b], wall_check, fail_buf, memory, b, _no_grid(sonar.shape[1]))
 
 
-def _check_params(wp):
-    if not isinstance(wp, WallCheckParams):
+def _check_params(wall_check):
+    if not isinstance(wall_check, WallCheckParams):
         raise ConfigError(f"params: expected WallCheckParams (WallCheckParams.from_config(cfg)), got "
-                          f"{type(wp).__name__}")
-    return wp
+                          f"{type(wall_check).__name__}")
+    return wall_check
 
 
 def _sonar_ranging(sonar, ranging):
@@ -336,31 +340,30 @@ def _check_state(state, shape):
 
 def per_reading_check(sonar, ranging, params: WallCheckParams):
     """(B, N, 4) bool: sonar readings (B, N, 4) m that match no ranging reading (B, N, N + M) m."""
-    wp = _check_params(params)
+    params = _check_params(params)
     sonar, ranging = _sonar_ranging(sonar, ranging)
     out = np.empty(sonar.shape, dtype=np.bool_)
-    _per_reading_batch(sonar, ranging, wp, out)
+    _per_reading_batch(sonar, ranging, params, out)
     return out
 
 
 def dead_reckon(imu_acc, imu_gyro, state: BehaviourState, params: WallCheckParams) -> None:
     """Advance ``state``'s dead reckoning in place by one IMU sample: imu_acc (B, N, 2) m/s² body frame,
     imu_gyro (B, N) rad/s."""
-    wp = _check_params(params)
+    params = _check_params(params)
     acc = np.ascontiguousarray(imu_acc, dtype=np.float64)
     gyro = np.ascontiguousarray(imu_gyro, dtype=np.float64)
     if acc.shape != state.dr_pos.shape or gyro.shape != state.dr_yaw.shape:
         raise ConfigError(f"imu_acc {acc.shape} / imu_gyro {gyro.shape}: expected {state.dr_pos.shape} and "
                           f"{state.dr_yaw.shape}")
-    _dead_reckon_batch(acc, gyro, wp.dt, state.dr_pos, state.dr_vel, state.dr_yaw)
+    _dead_reckon_batch(acc, gyro, params.dt, state.dr_pos, state.dr_vel, state.dr_yaw)
 
 
 def wall_check(sonar, ranging, params: WallCheckParams, state: BehaviourState):
     """The configured check of one step for B environments; updates ``state`` in place (call
     :func:`dead_reckon` first for the sequence check) and returns a copy of the wall flags (B, N, 4) bool."""
-    wp = _check_params(params)
+    params = _check_params(params)
     sonar, ranging = _sonar_ranging(sonar, ranging)
     s = _check_state(state, sonar.shape)
-    _wall_check_batch(sonar, ranging, wp, s.fail_count, s.wall, s.anchor, s.dr_pos, s.dr_yaw, s.wall_onsets,
-                      s.wall_readings)
+    _wall_check_batch(sonar, ranging, params, s)
     return s.wall.copy()

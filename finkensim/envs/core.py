@@ -149,7 +149,7 @@ class SwarmCore:
         B, N = r.sonar.shape[:2]
         obs = np.empty((B, N, self.obs_dim), dtype=np.float32)
         ws = self.state.world
-        _assemble_observation(r.sonar, r.ranging, r.imu_acc, r.imu_gyro, ws.pos, ws.yaw, *self._obs_blocks, obs)
+        _assemble_observation(r.sonar, r.ranging, r.imu_acc, r.imu_gyro, ws.pos, ws.yaw, self._obs_blocks, obs)
         return obs
 
     # -- rendering --
@@ -174,14 +174,15 @@ class SwarmCore:
 
 
 @njit(cache=True)
-def _assemble_observation(sonar, ranging, imu_acc, imu_gyro, pos, yaw, with_sonar, with_ranging, with_imu, with_pose,
-                          out):
+def _assemble_observation(sonar, ranging, imu_acc, imu_gyro, pos, yaw, blocks, out):
     """out (B, N, D) float32 ← the blocks of :func:`obs_layout` in order (sonar (B, N, 4), ranging (B, N, R), imu_acc
-    (B, N, 2) + imu_gyro (B, N), pos (B, N, 2) + yaw (B, N); each cast to float32 as numpy's assignment does).
+    (B, N, 2) + imu_gyro (B, N), pos (B, N, 2) + yaw (B, N); each cast to float32 as numpy's assignment does);
+    blocks = (with_sonar, with_ranging, with_imu, with_pose) bools: which blocks the observation has.
 
     Compiled, one observation row at a time: 65 µs at B = 1024, N = 10 against numpy's 130 µs for the block-wise
     assignment (the column counter advances by one per entry: with offsets added as ``c + j`` it ran at half speed).
     """
+    with_sonar, with_ranging, with_imu, with_pose = blocks
     B, N = out.shape[0], out.shape[1]
     for b in range(B):
         for n in range(N):

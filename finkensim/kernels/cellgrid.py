@@ -70,7 +70,7 @@ from numba import njit
 
 __all__ = [
     "GridSpec", "grid_spec", "grid_buffers", "GridParams", "NO_GRID", "grid_params", "EngineGrid", "engine_grid", "env_grid", "no_grid_buffers",
-    "cell_coord", "build_env", "row_slots", "query_env", "count_env", "any_within_env", "raycast_fan_env",
+    "grid_layout", "cell_coord", "build_env", "row_slots", "query_env", "count_env", "any_within_env", "raycast_fan_env",
 ]
 
 
@@ -192,6 +192,13 @@ def no_grid_buffers():
             np.empty(0, dtype=np.int64), np.empty(0))
 
 
+@njit(cache=True, inline="always")
+def grid_layout(g):
+    """The grid's layout as the kernels take it: the tuple (x0 m, y0 m, inv_cell 1/m, nx, ny) of any record with those
+    fields (:class:`GridSpec`, :class:`GridParams`, :class:`EngineGrid`)."""
+    return g.x0, g.y0, g.inv_cell, g.nx, g.ny
+
+
 # The query box is widened by this relative amount so that rounding of q ± r can never drop a cell
 # holding a point whose computed squared distance is ≤ r² (the exact test decides membership).
 BOX_PAD = 1e-9
@@ -213,11 +220,12 @@ def cell_coord(v, v0, inv_cell, n):
 
 
 @njit(cache=True)
-def build_env(pos_b, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of):
+def build_env(pos_b, layout, cell_start, order, spos, cell_of):
     """Counting sort of one environment's copters pos_b (N, 2) into cells; fills the grid buffers.
 
-    Stable: copters of one cell keep ascending index order. O(N + C).
+    layout: :func:`grid_layout`. Stable: copters of one cell keep ascending index order. O(N + C).
     """
+    x0, y0, inv_cell, nx, ny = layout
     N = pos_b.shape[0]
     C = nx * ny
     for c in range(C + 1):
@@ -248,13 +256,15 @@ def build_env(pos_b, x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
 
 
 @njit(cache=True, inline="always")
-def row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start):
-    """Sorted-slot range (k0, k1) of grid row cy that can hold points within rb of (qx, qy).
+def row_slots(cy, qx, qy, rb, pad, layout, cell, cell_start):
+    """Sorted-slot range (k0, k1) of grid row cy that can hold points within rb of (qx, qy); layout:
+    :func:`grid_layout`, cell m its cell side.
 
     The row's cells are trimmed to the chord of the disc at the row's nearest edge (so a query scans
     about the disc plus a band one cell wide, not its bounding square). Edge rows extend to ±inf
     (they hold the clamped points); ``pad`` (m) widens the band against rounding. (0, 0) if none.
     """
+    x0, y0, inv_cell, nx, ny = layout
     dy = 0.0
     if cy > 0:
         lo = y0 + cy * cell
@@ -285,19 +295,19 @@ def query_rows(qx, qy, r, y0, inv_cell, ny):
 
 
 @njit(cache=True)
-def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos, out_idx, out_d2):
+def query_env(qx, qy, r, skip, layout, cell_start, order, spos, out_idx, out_d2):
     """Copters within r (squared distance ≤ r²) of point (qx, qy), except copter ``skip`` (−1: none).
 
     Writes their indices into out_idx and squared distances into out_d2 (in grid order, not sorted;
     both need room for every copter that can be within r — N in the worst case) and returns how
-    many. Needs the buffers of :func:`build_env`. Querying the copters in sorted-slot order
+    many. Needs the buffers of :func:`build_env` (layout: :func:`grid_layout`). Querying the copters in sorted-slot order
     (``order[k]`` for k = 0 … N−1) keeps consecutive queries in the same cells (cache friendly).
     """
-    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, layout[1], layout[2], layout[4])
     r2 = r * r
     n = 0
     for cy in range(cy0, cy1 + 1):
-        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, layout, cell, cell_start)
         for k in range(k0, k1):
             dx = spos[k, 0] - qx
             dy = spos[k, 1] - qy
@@ -312,13 +322,13 @@ def query_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
 
 
 @njit(cache=True)
-def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+def count_env(qx, qy, r, skip, layout, cell_start, order, spos):
     """Number of copters within r of (qx, qy), except ``skip`` (as :func:`query_env`, no output)."""
-    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, layout[1], layout[2], layout[4])
     r2 = r * r
     n = 0
     for cy in range(cy0, cy1 + 1):
-        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, layout, cell, cell_start)
         for k in range(k0, k1):
             dx = spos[k, 0] - qx
             dy = spos[k, 1] - qy
@@ -327,13 +337,13 @@ def count_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos
 
 
 @njit(cache=True)
-def any_within_env(qx, qy, r, skip, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+def any_within_env(qx, qy, r, skip, layout, cell_start, order, spos):
     """Whether some copter other than ``skip`` is strictly closer than r to (qx, qy): squared distance
     (q − p)·(q − p) < r², the brute force's test (the sign of a difference does not change its square)."""
-    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, y0, inv_cell, ny)
+    pad, rb, cell, cy0, cy1 = query_rows(qx, qy, r, layout[1], layout[2], layout[4])
     r2 = r * r
     for cy in range(cy0, cy1 + 1):
-        k0, k1 = row_slots(cy, qx, qy, rb, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        k0, k1 = row_slots(cy, qx, qy, rb, pad, layout, cell, cell_start)
         for k in range(k0, k1):
             dx = qx - spos[k, 0]
             dy = qy - spos[k, 1]
@@ -352,17 +362,17 @@ def raycast_fan_env(ox, oy, dirs, max_range, radius, skip, spec, cells, out_t, o
     the copter hit (−1 if none); a tie keeps the lower copter index. Scans only the copters within
     max_range + radius of O (exact; see the module docstring).
     """
-    x0, y0, inv_cell, nx, ny = spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny
+    layout = grid_layout(spec)
     cell_start, order, spos = cells
     R = dirs.shape[0]
     for k in range(R):
         out_t[k] = np.inf
         out_j[k] = -1
-    pad, lim, cell, cy0, cy1 = query_rows(ox, oy, max_range + radius, y0, inv_cell, ny)
+    pad, lim, cell, cy0, cy1 = query_rows(ox, oy, max_range + radius, layout[1], layout[2], layout[4])
     lim2 = lim * lim
     r2 = radius * radius
     for cy in range(cy0, cy1 + 1):
-        k0, k1 = row_slots(cy, ox, oy, lim, pad, x0, y0, cell, inv_cell, nx, ny, cell_start)
+        k0, k1 = row_slots(cy, ox, oy, lim, pad, layout, cell, cell_start)
         for s in range(k0, k1):
             cx = spos[s, 0]
             cyy = spos[s, 1]

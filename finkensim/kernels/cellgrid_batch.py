@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .cellgrid import GridSpec, build_env, count_env, query_env, raycast_fan_env
+from .cellgrid import GridSpec, build_env, count_env, grid_layout, query_env, raycast_fan_env
 
 __all__ = ["build_grid", "neighbour_counts", "neighbours_within", "raycast_fan"]
 
@@ -24,33 +24,37 @@ def _check_pos(pos) -> np.ndarray:
 
 
 @njit(cache=True, parallel=True)
-def _build_batch(pos, x0, y0, inv_cell, nx, ny, cell_start, order, spos):
+def _build_batch(pos, spec, cell_start, order, spos):
     B, N, _ = pos.shape
+    layout = grid_layout(spec)
     for b in prange(B):
         cell_of = np.empty(N, dtype=np.int64)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start[b], order[b], spos[b], cell_of)
+        build_env(pos[b], layout, cell_start[b], order[b], spos[b], cell_of)
 
 
 @njit(cache=True, parallel=True)
-def _counts_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, out):
+def _counts_batch(pos, r, exclude_self, spec, out):
     B, N, _ = pos.shape
+    layout = grid_layout(spec)
+    nx, ny = spec.nx, spec.ny
     for b in prange(B):
         cell_start = np.empty(nx * ny + 1, dtype=np.int64)
         order = np.empty(N, dtype=np.int64)
         spos = np.empty((N, 2))
         cell_of = np.empty(N, dtype=np.int64)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        build_env(pos[b], layout, cell_start, order, spos, cell_of)
         for s in range(N):  # in cell order (cache friendly)
             i = order[s]
             skip = i if exclude_self else -1
-            out[b, i] = count_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start,
-                                  order, spos)
+            out[b, i] = count_env(pos[b, i, 0], pos[b, i, 1], r, skip, layout, cell_start, order, spos)
 
 
 @njit(cache=True, parallel=True)
-def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, idx, d2):
+def _neighbours_batch(pos, r, exclude_self, spec, counts, idx, d2):
     B, N, _ = pos.shape
     K = idx.shape[2]
+    layout = grid_layout(spec)
+    nx, ny = spec.nx, spec.ny
     for b in prange(B):
         cell_start = np.empty(nx * ny + 1, dtype=np.int64)
         order = np.empty(N, dtype=np.int64)
@@ -58,12 +62,11 @@ def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, id
         cell_of = np.empty(N, dtype=np.int64)
         tmp_i = np.empty(N, dtype=np.int64)
         tmp_d = np.empty(N)
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        build_env(pos[b], layout, cell_start, order, spos, cell_of)
         for s in range(N):  # in cell order (cache friendly)
             i = order[s]
             skip = i if exclude_self else -1
-            n = query_env(pos[b, i, 0], pos[b, i, 1], r, skip, x0, y0, inv_cell, nx, ny, cell_start, order,
-                          spos, tmp_i, tmp_d)
+            n = query_env(pos[b, i, 0], pos[b, i, 1], r, skip, layout, cell_start, order, spos, tmp_i, tmp_d)
             counts[b, i] = n
             for k in range(min(n, K)):
                 idx[b, i, k] = tmp_i[k]
@@ -76,7 +79,8 @@ def _neighbours_batch(pos, r, exclude_self, x0, y0, inv_cell, nx, ny, counts, id
 @njit(cache=True, parallel=True)
 def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, spec, out_t, out_j):
     B, N, _ = pos.shape
-    x0, y0, inv_cell, nx, ny = spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny
+    layout = grid_layout(spec)
+    nx, ny = spec.nx, spec.ny
     R = ray_yaw.shape[0]
     for b in prange(B):
         cell_start = np.empty(nx * ny + 1, dtype=np.int64)
@@ -84,7 +88,7 @@ def _raycast_batch(pos, yaw, ray_yaw, max_range, radius, spec, out_t, out_j):
         spos = np.empty((N, 2))
         cell_of = np.empty(N, dtype=np.int64)
         dirs = np.empty((R, 2))
-        build_env(pos[b], x0, y0, inv_cell, nx, ny, cell_start, order, spos, cell_of)
+        build_env(pos[b], layout, cell_start, order, spos, cell_of)
         for s in range(N):  # in cell order (cache friendly)
             i = order[s]
             for k in range(R):
@@ -101,7 +105,7 @@ def build_grid(pos, spec: GridSpec):
     cell_start = np.empty((B, spec.n_cells + 1), dtype=np.int64)
     order = np.empty((B, N), dtype=np.int64)
     spos = np.empty((B, N, 2))
-    _build_batch(pos, spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, cell_start, order, spos)
+    _build_batch(pos, spec, cell_start, order, spos)
     return cell_start, order, spos
 
 
@@ -109,7 +113,7 @@ def neighbour_counts(pos, r: float, spec: GridSpec, exclude_self: bool = True) -
     """Number of copters within r (m) of each copter: (B, N) int64 (itself excluded by default)."""
     pos = _check_pos(pos)
     out = np.empty(pos.shape[:2], dtype=np.int64)
-    _counts_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny, out)
+    _counts_batch(pos, float(r), bool(exclude_self), spec, out)
     return out
 
 
@@ -132,8 +136,7 @@ def neighbours_within(pos, r: float, spec: GridSpec, max_neighbours: int | None 
     counts = np.empty((B, N), dtype=np.int64)
     idx = np.empty((B, N, K), dtype=np.int64)
     d2 = np.empty((B, N, K))
-    _neighbours_batch(pos, float(r), bool(exclude_self), spec.x0, spec.y0, spec.inv_cell, spec.nx, spec.ny,
-                      counts, idx, d2)
+    _neighbours_batch(pos, float(r), bool(exclude_self), spec, counts, idx, d2)
     return counts, idx, d2
 
 

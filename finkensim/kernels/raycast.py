@@ -43,8 +43,9 @@ def box_exit(ox, oy, dx, dy, width, length):
 
 
 @njit(cache=True, inline="always")
-def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand):
-    """Nearest of (best, kind) and the hits of the unit ray on the copter circles except ``self_n``.
+def copter_hits(ray, self_n, pos_b, radius, best, kind, cand, n_cand):
+    """Nearest of (best, kind) and the hits of the unit ray ``ray`` = (ox, oy, dx, dy) (origin m, unit direction) on
+    the copter circles except ``self_n``.
 
     pos_b (N, 2) m centres, radius m; the copters tested: all when ``n_cand`` < 0, else cand[:n_cand] (int64
     indices, e.g. those a cell grid found near the ray's origin). Returns (t m, kind): the minimum over the
@@ -53,6 +54,7 @@ def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
     # the nearest circle first, then one comparison with (best, kind): the same value and kind as comparing
     # circle by circle (the first minimum of [best, t_1, t_2, …] either way, −0 before +0 included), and the loop
     # carries no branch on the data (see ray_circle)
+    ox, oy, dx, dy = ray
     M = pos_b.shape[0] if n_cand < 0 else n_cand
     nearest = np.inf
     for c in range(M):
@@ -67,12 +69,16 @@ def copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
 
 
 @njit(cache=True, inline="always")
-def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, cand, n_cand):
-    """Nearest hit of one unit ray for one environment: (t m, hit kind HIT_WALL / HIT_COPTER).
+def cast_ray(ray, self_n, pos_b, radius, walls, cand, n_cand):
+    """Nearest hit of one unit ray ``ray`` = (ox, oy, dx, dy) (origin m, unit direction) for one environment:
+    (t m, hit kind HIT_WALL / HIT_COPTER).
 
-    Plates pa, pb (S, 2) first, then the boundary, then the copter circles except ``self_n`` (all when
-    ``n_cand`` < 0, else cand[:n_cand], see :func:`copter_hits`); a tie keeps the earlier object.
+    walls = (pa, pb, width, length): the plates pa, pb (S, 2) m first, then the boundary of [0, width] × [0, length]
+    m, then the copter circles (centres pos_b (N, 2) m, ``radius`` m) except ``self_n`` (all when ``n_cand`` < 0,
+    else cand[:n_cand], see :func:`copter_hits`); a tie keeps the earlier object.
     """
+    ox, oy, dx, dy = ray
+    pa, pb, width, length = walls
     best = np.inf
     kind = HIT_NONE
     for s in range(pa.shape[0]):
@@ -84,7 +90,7 @@ def cast_ray(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, cand,
     if t < best:
         best = t
         kind = HIT_WALL
-    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
+    return copter_hits(ray, self_n, pos_b, radius, best, kind, cand, n_cand)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -232,16 +238,18 @@ def _wall_run(w, fast, S, ray, bands, width, length, t_end, eps):
 
 
 @njit(cache=True, inline="always")
-def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length, bands, cand, n_cand):
+def cast_ray_culled(ray, self_n, pos_b, radius, walls, bands, cand, n_cand):
     """:func:`cast_ray` testing only the plates the ray can reach before the net (same result, bit for bit).
 
-    ``bands`` = :func:`plate_bands` (pa, pb, width, length), computed once per environment and step. When the
+    ``bands`` = :func:`plate_bands` (pa, pb, width, length) of ``walls`` = (pa, pb, width, length), computed once per environment and step. When the
     layout or the ray does not allow culling, every plate is tested, as in :func:`cast_ray`.
 
     One path through the arrays (the plate runs, then the copters): with a separate fallback path, numba (0.68,
     whose O3 pipeline merges the reference-count decrements of the two paths before pruning them) kept an atomic
     increment and decrement of each array argument per ray.
     """
+    ox, oy, dx, dy = ray
+    pa, pb, width, length = walls
     ok = bands[0]
     S = pa.shape[0]
     t_box = box_exit(ox, oy, dx, dy, width, length)
@@ -254,10 +262,10 @@ def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length
     # 0 marks a ray (numerically) parallel to the wall
     inv_dx = 1.0 / dx if abs(dx) >= 1e-200 else 0.0
     inv_dy = 1.0 / dy if abs(dy) >= 1e-200 else 0.0
-    ray = (ox, oy, dx, dy, inv_dx, inv_dy)
+    slopes = (ox, oy, dx, dy, inv_dx, inv_dy)
     best = np.inf
     for w in range(4 if fast else 1):
-        first, last = _wall_run(w, fast, S, ray, bands, width, length, t_end, eps)
+        first, last = _wall_run(w, fast, S, slopes, bands, width, length, t_end, eps)
         for s in range(first, last + 1):
             t = ray_segment(ox, oy, dx, dy, pa[s, 0], pa[s, 1], pb[s, 0], pb[s, 1])
             if t < best:
@@ -266,4 +274,4 @@ def cast_ray_culled(ox, oy, dx, dy, self_n, pos_b, radius, pa, pb, width, length
         best = t_box
     # a plate or the net when anything was hit (culled: the net always is)
     kind = HIT_WALL if best < np.inf else HIT_NONE
-    return copter_hits(ox, oy, dx, dy, self_n, pos_b, radius, best, kind, cand, n_cand)
+    return copter_hits(ray, self_n, pos_b, radius, best, kind, cand, n_cand)

@@ -170,10 +170,14 @@ def correction_quantile(table, ref, u):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def correct_readings_env(out, dist, kind, table, range_scale, bias, min_range, max_range, seed, env, step):
+def correct_readings_env(out, dist, kind, table, sonar, counter):
     """Replace each reading out (N, S) m that has an echo (dist (N, S) m below max_range, kind (N, S) not HIT_NONE)
     by ``clamp(range_scale·dist + bias + Q(u))`` (:func:`correction_quantile`; u keyed per (seed, env, step, copter,
-    stream) and the sonar index as the block)."""
+    stream) and the sonar index as the block). sonar: a record with the sonar's range_scale, bias, min_range and
+    max_range (m; :class:`~finkensim.sensors.sonar_model.SonarScalars`); counter = (seed, env, step) of the random
+    numbers."""
+    range_scale, bias, min_range, max_range = sonar.range_scale, sonar.bias, sonar.min_range, sonar.max_range
+    seed, env, step = counter
     for n in range(out.shape[0]):
         key = counter_key(seed, env, step, n, STREAM_CORRECTION)
         for k in range(out.shape[1]):

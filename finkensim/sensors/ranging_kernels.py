@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.cellgrid import build_env, query_env
+from ..kernels.cellgrid import build_env, grid_layout, query_env
 from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
 from .ranging_radio import RadioParams, los_clearance, radio_dropped, radio_shift, tag_distance
 
@@ -75,7 +75,7 @@ class RangingParams(NamedTuple):
     Then the fields of :class:`~finkensim.sensors.ranging_radio.RadioParams`, the radio effects (antenna offsets,
     delays, scale, bias, NLOS, tail, dropout; ``radio_on`` = 0 leaves every reading as without them).
 
-    Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]``) and call
+    Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]``) and call
     :func:`reading_rule`: numba does not always elide the reference counting of arrays handed to an inlined
     function, and each count is an atomic increment and decrement. With the record passed per reading (and a
     compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading. The compiled twins that
@@ -201,13 +201,13 @@ def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
 
 
 @njit(cache=True, inline="always")
-def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, p, out):
-    """:func:`ranging_env` with the radio effects of ``p`` (:mod:`finkensim.sensors.ranging_radio`): the
+def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
+    """:func:`ranging_env` with the radio effects of ``ranging`` (:mod:`finkensim.sensors.ranging_radio`): the
     tag-to-tag distance decides the range and feeds the error model, whose draw :func:`radio_shift` turns into
     the reading; a lost reading (dropout) is NaN. Every pair is visited (no cell grid)."""
     n = pos_b.shape[0]
     m = beacons.shape[0]
-    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
         xi = pos_b[i, 0]
@@ -224,37 +224,37 @@ def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, p, out):
                 bx = beacons[j - n, 0]
                 by = beacons[j - n, 1]
                 wb = 0.0
-            if p.antenna_on:
-                x = tag_distance(p, i, xi, yi, 0.0, yaw_b[i], j, bx, by, 0.0, wb, j >= n)
+            if ranging.antenna_on:
+                x = tag_distance(ranging, i, (xi, yi, 0.0, yaw_b[i]), j, (bx, by, 0.0, wb), j >= n)
             else:
                 dx = bx - xi
                 dy = by - yi
                 x = np.sqrt(dx * dx + dy * dy)
             if x > max_range:
                 out[i, j] = max_range
-            elif radio_dropped(x, key, j, p):
+            elif radio_dropped(x, key, j, ranging):
                 out[i, j] = np.nan
             else:
                 y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
-                clear = los_clearance(pos_b, i, j if j < n else -1, bx, by) if p.nlos_on else np.inf
-                out[i, j] = radio_shift(y, i, j, clear, key, j, p)
+                clear = los_clearance(pos_b, i, j if j < n else -1, bx, by) if ranging.nlos_on else np.inf
+                out[i, j] = radio_shift(y, i, j, clear, key, j, ranging)
 
 
 @njit(cache=True, inline="always")
-def ranging_env(pos_b, yaw_b, beacons, seed, env, step, p, out):
+def ranging_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
     """Virtual-ranging readings of one environment → out (N, N + M) float64, m.
 
     ``pos_b`` (N, 2) copter positions m; ``yaw_b`` (N,) headings rad (read only by the antenna offsets);
     ``beacons`` (M, 2) tags m; ``seed``, ``env`` (global environment index), ``step``: integers of the counter
-    keys; ``p`` a :class:`RangingParams` (with radio effects on: :func:`ranging_radio_env`). out[i, j] is copter
+    keys; ``ranging`` a :class:`RangingParams` (with radio effects on: :func:`ranging_radio_env`). out[i, j] is copter
     i's reading of copter j (j < N; out[i, i] = 0) or of beacon j − N.
     """
-    if p.radio_on:
-        ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, p, out)
+    if ranging.radio_on:
+        ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out)
         return
     n = pos_b.shape[0]
     m = beacons.shape[0]
-    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
     drawn = np.empty(n + m, dtype=np.int64)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
@@ -289,10 +289,11 @@ def ranging_reach(max_range):
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def ranging_grid_env(pos_b, yaw_b, beacons, seed, env, step, p, out, g, grid, fill=True):
-    """:func:`ranging_env` with the copter pairs found on a cell grid when ``g.on``: the same readings, bit for bit.
+def ranging_grid_env(pos_b, yaw_b, beacons, counter, ranging, out, grid, cells, fill=True):
+    """:func:`ranging_env` with the copter pairs found on a cell grid when ``grid.on``: the same readings, bit for bit;
+    counter = (seed, env, step) of its random numbers.
 
-    g: a :class:`~finkensim.kernels.cellgrid.EngineGrid`, grid: this environment's buffers of it
+    grid: a :class:`~finkensim.kernels.cellgrid.EngineGrid`, cells: this environment's buffers of it
     (:func:`~finkensim.kernels.cellgrid.env_grid`; the grid is rebuilt here). Copters farther than ``max_range``
     read exactly ``max_range`` without a random number, so the row is filled with it and only the copters the grid
     finds within max_range·(1 + 1e-9) (a superset of those the exact rule keeps: the test itself stays the one
@@ -301,14 +302,16 @@ def ranging_grid_env(pos_b, yaw_b, beacons, seed, env, step, p, out, g, grid, fi
     columns the same grid query finds (the wall check on the engine's grid) — at N = 10 000 the fill is 10⁸ writes
     per step, the drawn readings 10⁵.
     """
-    if not g.on or p.radio_on:  # the radio effects visit every pair (tag distances, third copters)
-        ranging_env(pos_b, yaw_b, beacons, seed, env, step, p, out)
+    seed, env, step = counter
+    if not grid.on or ranging.radio_on:  # the radio effects visit every pair (tag distances, third copters)
+        ranging_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out)
         return
     n = pos_b.shape[0]
     m = beacons.shape[0]
-    cell_start, order, spos, cell_of, found, found_d2 = grid
-    build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
-    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
+    cell_start, order, spos, cell_of, found, found_d2 = cells
+    layout = grid_layout(grid)
+    build_env(pos_b, layout, cell_start, order, spos, cell_of)
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
     reach = ranging_reach(max_range)
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
@@ -319,8 +322,7 @@ def ranging_grid_env(pos_b, yaw_b, beacons, seed, env, step, p, out, g, grid, fi
                 out[i, j] = max_range
         out[i, i] = 0.0
         if reach < np.inf:
-            count = query_env(xi, yi, reach, i, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, found,
-                              found_d2)
+            count = query_env(xi, yi, reach, i, layout, cell_start, order, spos, found, found_d2)
         else:  # every copter is in range: no grid query can narrow it down
             count = 0
             for j in range(n):
@@ -341,17 +343,17 @@ def ranging_grid_env(pos_b, yaw_b, beacons, seed, env, step, p, out, g, grid, fi
 
 
 @njit(cache=True, parallel=True)
-def ranging_batch(positions, yaws, beacons, seed, env_ids, step, p, out):
+def ranging_batch(positions, yaws, beacons, seed, env_ids, step, ranging, out):
     """:func:`ranging_env` for every environment b (in parallel): ``positions`` (B, N, 2) m, ``yaws`` (B, N) rad,
     ``beacons`` (M, 2) m, ``env_ids`` (B,) int64 → out (B, N, N + M) float64 m."""
     for b in prange(positions.shape[0]):
-        ranging_env(positions[b], yaws[b], beacons, seed, env_ids[b], step, p, out[b])
+        ranging_env(positions[b], yaws[b], beacons, seed, env_ids[b], step, ranging, out[b])
 
 
 @njit(cache=True, parallel=True)
-def sample_readings(xs, key, p, out):
+def sample_readings(xs, key, ranging, out):
     """out[j]: :func:`reading_rule` of true distance xs[j] m (1-D, ≥ 0) as column j of the row ``key``
     (in parallel: each column's random numbers depend on j alone)."""
-    mode, max_range, sigma, inv_h, prob, alias, comp = p[:7]
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
     for j in prange(xs.shape[0]):
         out[j] = reading_rule(xs[j], key, j, mode, max_range, sigma, inv_h, prob, alias, comp)

@@ -81,36 +81,38 @@ def neutral_radio() -> RadioParams:
 
 
 @njit(cache=True, inline="always")
-def node_delay(r, k):
+def node_delay(ranging, k):
     """Node k's constant delay, m (0 beyond the configured list)."""
-    return r.node_delay[k] if k < r.node_delay.shape[0] else 0.0
+    return ranging.node_delay[k] if k < ranging.node_delay.shape[0] else 0.0
 
 
 @njit(cache=True, inline="always")
-def tag_position(r, k, x, y, z, yaw):
+def tag_position(ranging, k, x, y, z, yaw):
     """World position (x, y, z) m of copter k's tag: its centre (x, y, z) m plus its body-frame offset turned by
     its heading yaw rad. A node with no offset (a beacon: k beyond every row) is its own tag."""
-    ox = r.antenna[0, 0]
-    oy = r.antenna[0, 1]
-    oz = r.antenna[0, 2]
-    if k + 1 < r.antenna.shape[0]:
-        ox += r.antenna[k + 1, 0]
-        oy += r.antenna[k + 1, 1]
-        oz += r.antenna[k + 1, 2]
+    ox = ranging.antenna[0, 0]
+    oy = ranging.antenna[0, 1]
+    oz = ranging.antenna[0, 2]
+    if k + 1 < ranging.antenna.shape[0]:
+        ox += ranging.antenna[k + 1, 0]
+        oy += ranging.antenna[k + 1, 1]
+        oz += ranging.antenna[k + 1, 2]
     c = np.cos(yaw)
     s = np.sin(yaw)
     return x + c * ox - s * oy, y + s * ox + c * oy, z + oz
 
 
 @njit(cache=True, inline="always")
-def tag_distance(r, a, xa, ya, za, wa, b, xb, yb, zb, wb, b_is_tag):
-    """Tag-to-tag distance m of copter a (centre xa, ya, za m, heading wa rad) and node b; ``b_is_tag``: b is a
-    beacon whose position is its tag (no offset applied)."""
-    ta = tag_position(r, a, xa, ya, za, wa)
+def tag_distance(ranging, a, pose_a, b, pose_b, b_is_tag):
+    """Tag-to-tag distance m of copter a (pose_a = (x m, y m, z m, heading rad) of its centre) and node b (pose_b
+    likewise); ``b_is_tag``: b is a beacon whose position is its tag (no offset applied)."""
+    xa, ya, za, wa = pose_a
+    xb, yb, zb, wb = pose_b
+    ta = tag_position(ranging, a, xa, ya, za, wa)
     if b_is_tag:
         tb = (xb, yb, zb)
     else:
-        tb = tag_position(r, b, xb, yb, zb, wb)
+        tb = tag_position(ranging, b, xb, yb, zb, wb)
     dx = tb[0] - ta[0]
     dy = tb[1] - ta[1]
     dz = tb[2] - ta[2]
@@ -141,17 +143,17 @@ def los_clearance(pos, a, b, bx, by):
 
 
 @njit(cache=True, inline="always")
-def radio_shift(y, a, b, clear, key, j, r):
+def radio_shift(y, a, b, clear, key, j, ranging):
     """The reading m of nodes a, b after the radio effects, from the error model's draw y m (≥ 0): scale, bias,
     both node delays, NLOS near a third copter at clearance ``clear`` m, the exponential tail (uniforms of column j
     of row ``key``); clipped at 0."""
-    v = r.scale * y + r.bias + node_delay(r, a) + node_delay(r, b)
-    if r.nlos_on:
-        w = clear / r.nlos_width
-        v += r.nlos_bias * np.exp(-(w * w))
-    if r.tail_on:
-        if uniform(key, RADIO_BASE + 4 * j) < r.tail_probability:
-            v -= r.tail_mean * np.log(uniform(key, RADIO_BASE + 4 * j + 1))
+    v = ranging.scale * y + ranging.bias + node_delay(ranging, a) + node_delay(ranging, b)
+    if ranging.nlos_on:
+        w = clear / ranging.nlos_width
+        v += ranging.nlos_bias * np.exp(-(w * w))
+    if ranging.tail_on:
+        if uniform(key, RADIO_BASE + 4 * j) < ranging.tail_probability:
+            v -= ranging.tail_mean * np.log(uniform(key, RADIO_BASE + 4 * j + 1))
     return v if v > 0.0 else 0.0
 
 
@@ -173,15 +175,15 @@ def dropout_probabilities(x, dropout_a, dropout_b):
 
 
 @njit(cache=True, inline="always")
-def radio_dropped(x, key, j, r):
+def radio_dropped(x, key, j, ranging):
     """Whether column j's reading of true distance x m is lost (uniform ``RADIO_BASE + 4j + 2`` of row ``key``)."""
-    if not r.dropout_on:
+    if not ranging.dropout_on:
         return False
-    return uniform(key, RADIO_BASE + 4 * j + 2) < dropout_probability(x, r.dropout_a, r.dropout_b)
+    return uniform(key, RADIO_BASE + 4 * j + 2) < dropout_probability(x, ranging.dropout_a, ranging.dropout_b)
 
 
 @njit(cache=True, parallel=True)
-def radio_batch(y0, x, a, b, clear, key, max_range, r, out):
+def radio_batch(y0, x, a, b, clear, key, max_range, ranging, out):
     """The diagnosis's draws with the radio effects: out (n, M) m from the error model's draws y0 (n, M) m of true
     (tag) distances x (n, M) m between nodes a (n,) and b (n,) int64, line-of-sight clearances clear (n,) m. Draw
     (i, m) uses column i·M + m of the row ``key``; x > max_range reads max_range (no effect)."""
@@ -191,7 +193,7 @@ def radio_batch(y0, x, a, b, clear, key, max_range, r, out):
             if x[i, m] > max_range:
                 out[i, m] = max_range
             else:
-                out[i, m] = radio_shift(y0[i, m], a[i], b[i], clear[i], key, i * M + m, r)
+                out[i, m] = radio_shift(y0[i, m], a[i], b[i], clear[i], key, i * M + m, ranging)
 
 
 def radio_draws(y0, x, a, b, clear, seed, p) -> np.ndarray:
@@ -212,10 +214,12 @@ def antenna_key(p):
 
 
 @njit(cache=True, parallel=True)
-def tag_distance_draws(pos, z, yaw, times, noise, M, r, out):
+def tag_distance_draws(pos, z, yaw, times, noise, M, ranging, out):
     """Tag-to-tag distances for M pose draws: out (K, N, N, M) m (diagonal 0) of the logged poses pos (T, N, 2) m,
     heights z (T, N) m, headings yaw (T, N) rad at the samples ``times`` (K,), each pose drawn with the tracking
-    noise ``noise`` (:class:`~finkensim.sensors.tracking.PoseNoise`) as the diagnosis's centre distances are."""
+    noise ``noise`` (:class:`~finkensim.sensors.tracking.PoseNoise`). ``ranging``: the record whose tag offsets
+    (``antenna``) apply (:func:`tag_distance`), or None for the distances between the copters' centres (the
+    diagnosis's ``gap.replay.ranging_draws``: 3-D with the heights, horizontal for zero heights, bit for bit)."""
     K = times.shape[0]
     N = pos.shape[1]
     for i in prange(K * M):
@@ -228,6 +232,13 @@ def tag_distance_draws(pos, z, yaw, times, noise, M, r, out):
         for a in range(N):
             out[ti, a, a, m] = 0.0
             for b in range(a + 1, N):
-                d = tag_distance(r, a, P[a, 0], P[a, 1], z[k, a], W[a], b, P[b, 0], P[b, 1], z[k, b], W[b], False)
+                if ranging is None:  # resolved when compiling: one machine code per case
+                    dx = P[a, 0] - P[b, 0]
+                    dy = P[a, 1] - P[b, 1]
+                    dz = z[k, a] - z[k, b]
+                    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+                else:
+                    d = tag_distance(ranging, a, (P[a, 0], P[a, 1], z[k, a], W[a]), b, (P[b, 0], P[b, 1], z[k, b], W[b]),
+                                     False)
                 out[ti, a, b, m] = d
                 out[ti, b, a, m] = d

@@ -1,4 +1,4 @@
-"""The responsibility table: alias tables of a mixture's component weights on a grid of true distances.
+"""The responsibility table: alias tables of a mixture's component weights at nodes of true distance.
 
 Evaluating K = 100 exponentials per ``mixture`` reading is avoided by a :class:`ResponsibilityTable`:
 the exact responsibilities r(x_g) at G equally spaced nodes x_g = g·h on [0, max_range], each stored as
@@ -7,7 +7,7 @@ kernel (:func:`finkensim.sensors.ranging_kernels.pick_component`) takes node g+1
 f = (X − x_g)/h and node g otherwise, which samples exactly the linear interpolation
 (1 − f)·r(x_g) + f·r(x_{g+1}) of the node distributions. The node spacing is chosen at build time so
 that the total-variation distance between that interpolation and the exact r(X) is below ``tol``
-(default 1e-4); the realised maximum, measured on a grid 16 times finer than the nodes using the
+(default 1e-4); the realised maximum, measured at points 16 times denser than the nodes using the
 distributions the alias tables actually encode, is ``table.max_tv_error`` (Parlow's model on
 [0, 2.5] m: 1640 nodes, h = 1.53 mm, 9.1e-5; the error is O(h²), largest near X = 0.295 m). Any
 probability computed from a reading is therefore off by at most that much. The table is
@@ -81,13 +81,13 @@ def alias_distribution(prob: np.ndarray, alias: np.ndarray) -> np.ndarray:
 
 
 class ResponsibilityTable:
-    """Alias tables of the responsibilities r(X) on the uniform grid x_g = g·h, g = 0…G−1, over [0, x_max].
+    """Alias tables of the responsibilities r(X) at the equally spaced nodes x_g = g·h, g = 0…G−1, over [0, x_max].
 
     Attributes: ``x_max``, ``n_nodes`` (G), ``h``, ``inv_h`` = 1/h, ``prob`` (G, K) float64 and
     ``alias`` (G, K) int32 (row g samples component c with u·K → column c, coin ``prob[g, c]``, else
     ``alias[g, c]``), ``node_distribution`` (G, K) the distributions the rows actually encode, and
     ``max_tv_error``: the largest total-variation distance between the sampled component law at X,
-    (1 − f)·node_g + f·node_{g+1}, and the exact r(X), over a grid ``check_subdivisions`` times finer
+    (1 − f)·node_g + f·node_{g+1}, and the exact r(X), over points ``check_subdivisions`` times denser
     than the nodes (``tv_check_points`` points). Build with :meth:`build`.
     """
 
@@ -117,7 +117,7 @@ class ResponsibilityTable:
     @classmethod
     def build(cls, mixture: Mixture, x_max: float, tol: float = 1e-4,
               max_bytes: float = 64e6) -> "ResponsibilityTable":
-        """The coarsest grid whose ``max_tv_error`` is below ``tol`` (error ∝ h²; table ≤ ``max_bytes``)."""
+        """The coarsest node spacing whose ``max_tv_error`` is below ``tol`` (error ∝ h²; table ≤ ``max_bytes``)."""
         k = mixture.n_components
         cap = max(2, int(max_bytes // (12 * k)))
         n = min(cap, max(2, int(math.ceil(x_max / 0.004)) + 1))
@@ -130,7 +130,7 @@ class ResponsibilityTable:
             table = cls(mixture, x_max, n)
         if table.max_tv_error > tol:
             warnings.warn(f"ranging table: total-variation error {table.max_tv_error:.2e} > tol {tol:.1e} "
-                          f"with the largest allowed grid ({table.n_nodes} nodes over {x_max} m)", stacklevel=2)
+                          f"with the most nodes allowed ({table.n_nodes} nodes over {x_max} m)", stacklevel=2)
         return table
 
     def component_distribution(self, x) -> np.ndarray:

@@ -18,7 +18,7 @@ All are ``inline="always"`` numba functions of arrays, numbers and the model rec
 can call them with work buffers allocated once. The functions called once per ray or reading take the model's
 :class:`~finkensim.sensors.sonar_model.SonarScalars` (any record with the scalar fields works; the model itself
 too, at the cost of reference-counting its arrays on every call). The model, the random-number layout and the units
-are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sp.mount_yaw.shape[0]``
+are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sonar.mount_yaw.shape[0]``
 (4 in the simulator).
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..kernels.cellgrid import build_env, query_env
+from ..kernels.cellgrid import build_env, grid_layout, query_env
 from ..kernels.raycast import HIT_NONE, cast_ray_culled, plate_bands
 from ..kernels.rng import STREAM_SONAR, STREAM_SONAR_SCHEDULE, counter_key, normal, uniform
 from ..kernels.trig import sin_fast
@@ -34,7 +34,7 @@ from .correction_table import correct_readings_env
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, ERROR_GAUSSIAN, ERROR_NONE,
                           ERROR_SEED, SCHEDULE_RANDOM_OFFSET, SCHEDULE_ROUND_ROBIN, sonar_scalars)
 
-__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
+__all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_pose", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
            "fire_slots_env", "sonar_spread", "crosstalk_path", "echo_error", "echo_reading", "clamp_reading", "measured_reading",
            "ultrasonic_env", "down_env"]
 
@@ -75,15 +75,15 @@ def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_o
 
 
 @njit(cache=True, inline="always")
-def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
+def sonar_poses_env(pos_b, yaw_b, sonar, sonar_buf):
     """Sonar origins and headings of one environment → sonar_buf (N, S, 4): (x m, y m, cos ψ, sin ψ), ψ = yaw + mount.
 
     The heading is the copter's (cos, sin) of its yaw rotated by the mount's (one sine and cosine per copter and per
     mount, not per sonar): within 10⁻¹⁵ + 2.3·10⁻¹⁶·|yaw + mount| of (cos ψ, sin ψ) of the float sum ψ (the sum's
     own rounding is the second term; ``tests/test_ultrasonic.py`` checks the bound), i.e. < 10⁻¹⁵ m of a 3 m ray.
     """
-    mount_yaw = sp.mount_yaw
-    offset = sp.offset
+    mount_yaw = sonar.mount_yaw
+    offset = sonar.offset
     N = pos_b.shape[0]
     if N == 0:
         return
@@ -106,18 +106,24 @@ def sonar_poses_env(pos_b, yaw_b, sp, sonar_buf):
 
 
 @njit(cache=True, inline="always")
-def sonar_hit(n, k, psi, pos_b, pa, pb, width, length, sp, rays, sonar_buf, bands, cand, n_cand):
-    """Nearest echo of sonar k of copter n over the rays of its beam, not limited to the range.
+def sonar_pose(sonar_buf, n, k):
+    """Sonar k of copter n as placed by :func:`sonar_poses_env`: the tuple (x m, y m, cos ψ, sin ψ) of sonar_buf[n, k]."""
+    return sonar_buf[n, k, 0], sonar_buf[n, k, 1], sonar_buf[n, k, 2], sonar_buf[n, k, 3]
 
-    psi rad: the sonar's heading, yaw_b[n] + mount_yaw[k]; rays (R,) rad: the beam's ray angles relative to it
-    (``SonarModel.ray_angles``); sp: the model's :class:`~finkensim.sensors.sonar_model.SonarScalars` (or the
-    model; its ``radius`` is read). Geometry as :func:`ideal_env` (sonar_buf from :func:`sonar_poses_env`, bands
-    from :func:`~finkensim.kernels.raycast.plate_bands`); the copters tested: all when ``n_cand`` < 0, else
-    cand[:n_cand] (:func:`~finkensim.kernels.raycast.copter_hits`). Returns (t m, kind HIT_*, hx m, hy m): the
-    distance (inf when a ray escapes nothing — never inside the arena), what was hit, and where (NaN if nothing).
+
+@njit(cache=True, inline="always")
+def sonar_hit(n, pose, psi, pos_b, walls, sonar, rays, bands, cand, n_cand):
+    """Nearest echo of a sonar of copter n over the rays of its beam, not limited to the range.
+
+    pose: the sonar's (x m, y m, cos ψ, sin ψ) (:func:`sonar_pose`); psi rad: its heading, yaw_b[n] + mount_yaw[k];
+    rays (R,) rad: the beam's ray angles relative to it (``SonarModel.ray_angles``); sonar: the model's
+    :class:`~finkensim.sensors.sonar_model.SonarScalars` (or the model; its ``radius`` is read). walls = (pa, pb,
+    width, length) as in :func:`ideal_env`, bands from :func:`~finkensim.kernels.raycast.plate_bands`; the copters
+    tested: all when ``n_cand`` < 0, else cand[:n_cand] (:func:`~finkensim.kernels.raycast.copter_hits`). Returns
+    (t m, kind HIT_*, hx m, hy m): the distance (inf when a ray escapes nothing — never inside the arena), what was
+    hit, and where (NaN if nothing).
     """
-    ox = sonar_buf[n, k, 0]
-    oy = sonar_buf[n, k, 1]
+    ox, oy, cx, cy = pose
     R = rays.shape[0]
     best = np.inf
     bkind = HIT_NONE
@@ -125,13 +131,13 @@ def sonar_hit(n, k, psi, pos_b, pa, pb, width, length, sp, rays, sonar_buf, band
     hy = np.nan
     for r in range(R):
         if R == 1 and rays[0] == 0.0:
-            dx = sonar_buf[n, k, 2]
-            dy = sonar_buf[n, k, 3]
+            dx = cx
+            dy = cy
         else:
             a = psi + rays[r]
             dx = np.cos(a)
             dy = np.sin(a)
-        t, hk = cast_ray_culled(ox, oy, dx, dy, n, pos_b, sp.radius, pa, pb, width, length, bands, cand, n_cand)
+        t, hk = cast_ray_culled((ox, oy, dx, dy), n, pos_b, sonar.radius, walls, bands, cand, n_cand)
         if t < best:
             best = t
             bkind = hk
@@ -141,14 +147,13 @@ def sonar_hit(n, k, psi, pos_b, pa, pb, width, length, sp, rays, sonar_buf, band
 
 
 @njit(cache=True, inline="always")
-def store_ideal(n, k, best, bkind, hx, hy, max_range, sonar_buf, dist, kind, hit):
-    """The ideal reading of sonar k of copter n from its :func:`sonar_hit` (best, bkind, hx, hy) into dist[n, k],
-    kind[n, k], hit[n, k] (as :func:`ideal_env`: beyond ``max_range`` m reads max_range, HIT_NONE)."""
+def store_ideal(n, k, found, max_range, pose, dist, kind, hit):
+    """The ideal reading of sonar k of copter n from its :func:`sonar_hit` ``found`` = (best, bkind, hx, hy) into
+    dist[n, k], kind[n, k], hit[n, k] (as :func:`ideal_env`: beyond ``max_range`` m reads max_range, HIT_NONE); pose:
+    the sonar's (:func:`sonar_pose`)."""
     # every array is read or written on every path (the branches choose numbers): see cast_ray_culled on why
-    ox = sonar_buf[n, k, 0]
-    oy = sonar_buf[n, k, 1]
-    dx = sonar_buf[n, k, 2]
-    dy = sonar_buf[n, k, 3]
+    best, bkind, hx, hy = found
+    ox, oy, dx, dy = pose
     d = best
     kd = bkind
     if best > max_range:
@@ -164,77 +169,78 @@ def store_ideal(n, k, best, bkind, hx, hy, max_range, sonar_buf, dist, kind, hit
 
 
 @njit(cache=True, inline="always")
-def ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit, g, grid):
+def ideal_env(pos_b, yaw_b, walls, sonar, ideal, grid, cells):
     """Ideal horizontal readings of one environment.
 
-    pos_b (N, 2) m, yaw_b (N,) rad, pa/pb (S_p, 2) m displaced plate surfaces
-    (:func:`displaced_plates_env`), width/length m. Writes sonar_buf (N, S, 4) (see
-    :func:`sonar_poses_env`), dist (N, S) m (max_range when no echo), kind (N, S) int (HIT_*),
+    pos_b (N, 2) m, yaw_b (N,) rad, walls = (pa, pb, width, length): pa/pb (S_p, 2) m displaced plate surfaces
+    (:func:`displaced_plates_env`), width/length m. ideal = (sonar_buf, dist, kind, hit): writes sonar_buf (N, S, 4)
+    (see :func:`sonar_poses_env`), dist (N, S) m (max_range when no echo), kind (N, S) int (HIT_*),
     hit (N, S, 2) m (nearest hit point, also beyond range).
 
-    g: an :class:`~finkensim.kernels.cellgrid.EngineGrid` (or a record with its ``on`` and geometry fields), grid:
-    this environment's buffers of it. When ``g.on``, the copters each ray is tested against are those the grid
+    grid: an :class:`~finkensim.kernels.cellgrid.EngineGrid` (or a record with its ``on`` and geometry fields), cells:
+    this environment's buffers of it. When ``grid.on``, the copters each ray is tested against are those the grid
     finds within max_range + radius + |offset| of the copter (rebuilt here): every copter a ray can hit within the
     range, so dist and kind are the brute force's bit for bit; a ray without an echo within range may then report
     a farther wall point in ``hit`` where the brute force reports a copter beyond the range.
     """
-    sonar_poses_env(pos_b, yaw_b, sp, sonar_buf)
-    bands = plate_bands(pa, pb, width, length)
-    cell_start, order, spos, cell_of, found, found_d2 = grid
-    if g.on:
-        build_env(pos_b, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start, order, spos, cell_of)
-    sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
-    mount_yaw = sp.mount_yaw
-    rays = sp.ray_angles
+    sonar_buf, dist, kind, hit = ideal
+    sonar_poses_env(pos_b, yaw_b, sonar, sonar_buf)
+    bands = plate_bands(walls[0], walls[1], walls[2], walls[3])
+    cell_start, order, spos, cell_of, found, found_d2 = cells
+    layout = grid_layout(grid)
+    if grid.on:
+        build_env(pos_b, layout, cell_start, order, spos, cell_of)
+    scalars = sonar_scalars(sonar)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
+    mount_yaw = sonar.mount_yaw
+    rays = sonar.ray_angles
     # a hit at t ≤ max_range from the sonar has its circle's centre within t + radius of the sonar (exactly; the
     # computed t of a grazing ray can be off by ~sqrt(eps)·scale ≈ 1e-8·scale, hence the 1e-6 margin)
-    reach = (sps.max_range + sps.radius + abs(sps.offset)) * (1.0 + 1e-6)
+    reach = (scalars.max_range + scalars.radius + abs(scalars.offset)) * (1.0 + 1e-6)
     for n in range(pos_b.shape[0]):
         n_cand = -1
-        if g.on:
-            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny, cell_start,
-                               order, spos, found, found_d2)
+        if grid.on:
+            n_cand = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, layout, cell_start, order, spos, found, found_d2)
         for k in range(mount_yaw.shape[0]):
-            best, bkind, hx, hy = sonar_hit(n, k, yaw_b[n] + mount_yaw[k], pos_b, pa, pb, width, length, sps, rays,
-                                            sonar_buf, bands, found, n_cand)
-            store_ideal(n, k, best, bkind, hx, hy, sps.max_range, sonar_buf, dist, kind, hit)
+            pose = sonar_pose(sonar_buf, n, k)
+            echo = sonar_hit(n, pose, yaw_b[n] + mount_yaw[k], pos_b, walls, scalars, rays, bands, found, n_cand)
+            store_ideal(n, k, echo, scalars.max_range, pose, dist, kind, hit)
 
 
 # ---------------------------------------------------------------------------------------------
 # cross-talk geometry
 
 @njit(cache=True, inline="always")
-def fire_slot(seed, env_id, step, n, sp, draw):
+def fire_slot(seed, env_id, step, n, sonar, draw):
     """Firing slot (0 … n_slots − 1) of copter n at this step.
 
     ``draw`` picks the uniform of the random-offset schedule inside the copter's STREAM_SONAR_SCHEDULE
     cell: the simulator uses 0; the gap replay, which does not know the real schedule, uses its draw
     index so that its predictive ensemble spreads over the possible schedules.
     """
-    if sp.schedule == SCHEDULE_ROUND_ROBIN:
-        return n % sp.n_slots
-    if sp.schedule == SCHEDULE_RANDOM_OFFSET:
+    if sonar.schedule == SCHEDULE_ROUND_ROBIN:
+        return n % sonar.n_slots
+    if sonar.schedule == SCHEDULE_RANDOM_OFFSET:
         u = uniform(counter_key(seed, env_id, step, n, STREAM_SONAR_SCHEDULE), draw)
-        return min(int(u * sp.n_slots), sp.n_slots - 1)
+        return min(int(u * sonar.n_slots), sonar.n_slots - 1)
     return 0
 
 
 @njit(cache=True, inline="always")
-def fire_slots_env(seed, env_id, step, sp, slot, draw):
+def fire_slots_env(seed, env_id, step, sonar, slot, draw):
     """Firing slots of every copter of one environment → slot (N,) int64 (``draw`` as in :func:`fire_slot`)."""
     for n in range(slot.shape[0]):
-        slot[n] = fire_slot(seed, env_id, step, n, sp, draw)
+        slot[n] = fire_slot(seed, env_id, step, n, sonar, draw)
 
 
 @njit(cache=True, inline="always")
-def sonar_spread(sp):
+def sonar_spread(sonar):
     """An upper bound (m) on the distance between two sonars of one copter as :func:`sonar_poses_env` places them
     (origin + offset · unit heading): 2·|offset|; :func:`crosstalk_path`'s margin absorbs the rounding."""
-    return 2.0 * abs(sp.offset)
+    return 2.0 * abs(sonar.offset)
 
 
 @njit(cache=True, inline="always")
-def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread, scratch):
+def crosstalk_path(n, k, sonar_buf, slot, sonar, cand, n_cand, spread, scratch):
     """Shortest emitter→receiver path (m) heard by sonar (n, k) under geometric cross-talk; inf if none.
 
     Emitters are the sonars of other copters firing in copter n's slot (``slot`` (N,)), inside the
@@ -249,8 +255,8 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread, scratch):
     ry = sonar_buf[n, k, 1]
     ux = sonar_buf[n, k, 2]
     uy = sonar_buf[n, k, 3]
-    lim = 2.0 * sp.max_range
-    ch = sp.cos_half_angle
+    lim = 2.0 * sonar.max_range
+    ch = sonar.cos_half_angle
     best = np.inf
     # Copter-level rejection: the cone (half angle α, cos α = ch) lies inside both half-planes e·w ≥ 0 bounded by its
     # edges (inward unit normals e1, e2). The sonars of copter m lie within ``spread`` of its sonar 0 (v from the
@@ -297,44 +303,44 @@ def crosstalk_path(n, k, sonar_buf, slot, sp, cand, n_cand, spread, scratch):
 # the error model of one reading
 
 @njit(cache=True, inline="always")
-def echo_error(key, k, sp):
-    """The random error (m) of an echo reading of sonar k under ``sp.error`` (random numbers of block k of
+def echo_error(key, k, sonar):
+    """The random error (m) of an echo reading of sonar k under ``sonar.error`` (random numbers of block k of
     ``key``); :func:`echo_reading` adds it to range_scale · d + bias. Not for ``ERROR_NONE`` (no error drawn)."""
-    if sp.error == ERROR_GAUSSIAN:
-        return sp.sigma * normal(key, 4 * k + 1)
+    if sonar.error == ERROR_GAUSSIAN:
+        return sonar.sigma * normal(key, 4 * k + 1)
     u = uniform(key, 8 * k + 1)
-    R = np.sqrt(-2.0 * sp.sigma * sp.sigma * np.log(u))
-    if sp.error == ERROR_SEED:
-        return R - sp.rayleigh_s
-    return sp.rayleigh_sign * (R - sp.rayleigh_s)
+    R = np.sqrt(-2.0 * sonar.sigma * sonar.sigma * np.log(u))
+    if sonar.error == ERROR_SEED:
+        return R - sonar.rayleigh_s
+    return sonar.rayleigh_sign * (R - sonar.rayleigh_s)
 
 
 @njit(cache=True, inline="always")
-def echo_reading(d, echo, key, k, sp, err=None):
+def echo_reading(d, echo, key, k, sonar, err=None):
     """Echo reading (m, unclamped) of sonar k for true distance d; ``echo`` False → max_range exactly.
 
-    An echo reads range_scale · d + bias plus the error of ``sp.error`` (:func:`echo_error`: random numbers of
+    An echo reads range_scale · d + bias plus the error of ``sonar.error`` (:func:`echo_error`: random numbers of
     block k of ``key``, see :mod:`finkensim.sensors.ultrasonic`), or plus ``err`` m when given (that error drawn
     beforehand, e.g. once for many evaluations of other parameters).
     """
     if not echo:
-        return sp.max_range
-    y = d * sp.range_scale + sp.bias
-    if sp.error == ERROR_NONE:
+        return sonar.max_range
+    y = d * sonar.range_scale + sonar.bias
+    if sonar.error == ERROR_NONE:
         return y
     if err is None:
-        return y + echo_error(key, k, sp)
+        return y + echo_error(key, k, sonar)
     return y + err
 
 
 @njit(cache=True, inline="always")
-def clamp_reading(y, sp):
+def clamp_reading(y, sonar):
     """y clamped to [min_range, max_range] (m)."""
-    return min(sp.max_range, max(sp.min_range, y))
+    return min(sonar.max_range, max(sonar.min_range, y))
 
 
 @njit(cache=True, inline="always")
-def measured_reading(d, echo, path, key, k, sp, err=None):
+def measured_reading(d, echo, path, key, k, sonar, err=None):
     """The measured reading (m, clamped) of one sonar: echo error, then cross-talk, then the clamp.
 
     d m true distance (max_range without an echo); echo: an echo within range; path m: the shortest
@@ -346,71 +352,71 @@ def measured_reading(d, echo, path, key, k, sp, err=None):
     echo time converted like any other, so ``range_scale`` and ``bias`` apply to it too: range_scale · d/2
     + bias (they are 1 and 0 unless the gap diagnosis fits them, and then the reading is d/2 exactly).
     """
-    y = echo_reading(d, echo, key, k, sp, err)
-    if sp.crosstalk & CROSSTALK_CONSTANT:
-        if uniform(key, 8 * k) < sp.crosstalk_probability:
-            y = 0.5 * d * sp.range_scale + sp.bias
-    if sp.crosstalk & CROSSTALK_GEOMETRIC and path < np.inf:
-        if sp.crosstalk_hear_probability >= 1.0 or uniform(key, 8 * k + HEAR_COIN) < sp.crosstalk_hear_probability:
-            c = 0.5 * path * sp.range_scale + sp.bias
-            if sp.crosstalk_jitter > 0.0:
-                c += sp.crosstalk_jitter * normal(key, 4 * k + 2)
+    y = echo_reading(d, echo, key, k, sonar, err)
+    if sonar.crosstalk & CROSSTALK_CONSTANT:
+        if uniform(key, 8 * k) < sonar.crosstalk_probability:
+            y = 0.5 * d * sonar.range_scale + sonar.bias
+    if sonar.crosstalk & CROSSTALK_GEOMETRIC and path < np.inf:
+        if sonar.crosstalk_hear_probability >= 1.0 or uniform(key, 8 * k + HEAR_COIN) < sonar.crosstalk_hear_probability:
+            c = 0.5 * path * sonar.range_scale + sonar.bias
+            if sonar.crosstalk_jitter > 0.0:
+                c += sonar.crosstalk_jitter * normal(key, 4 * k + 2)
             if c < y:
                 y = c
-    return clamp_reading(y, sp)
+    return clamp_reading(y, sonar)
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def ultrasonic_env(pos_b, yaw_b, pa, pb, width, length, sp, seed, env_id, step, work, out, g, grid):
+def ultrasonic_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
     """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
 
     Same geometry arguments and grid as :func:`ideal_env`; work = (sonar_buf, dist, kind, hit, slot): its work
-    buffers (the ideal values are left in dist/kind/hit) and slot (N,) int64; seed, env_id, step key the random
-    numbers. With the grid on, the cross-talk emitters are searched among the copters within
+    buffers (the ideal values are left in dist/kind/hit) and slot (N,) int64; counter = (seed, env_id, step) keys
+    the random numbers. With the grid on, the cross-talk emitters are searched among the copters within
     2·(max_range + |offset|) of the receiver's copter (all that can be within 2·max_range of its sonar).
     """
     sonar_buf, dist, kind, hit, slot = work
-    ideal_env(pos_b, yaw_b, pa, pb, width, length, sp, sonar_buf, dist, kind, hit, g, grid)
-    sps = sonar_scalars(sp)  # the per-reading calls take the scalars only (see SonarScalars)
-    n_sonars = sp.mount_yaw.shape[0]
-    geometric = sps.crosstalk & CROSSTALK_GEOMETRIC
+    seed, env_id, step = counter
+    ideal_env(pos_b, yaw_b, walls, sonar, (sonar_buf, dist, kind, hit), grid, cells)
+    scalars = sonar_scalars(sonar)  # the per-reading calls take the scalars only (see SonarScalars)
+    n_sonars = sonar.mount_yaw.shape[0]
+    geometric = scalars.crosstalk & CROSSTALK_GEOMETRIC
     if geometric:
-        fire_slots_env(seed, env_id, step, sps, slot, 0)
-    cell_start, order, spos, cell_of, found, found_d2 = grid
-    reach = 2.0 * (sps.max_range + abs(sps.offset)) * (1.0 + 1e-6)
-    spread = sonar_spread(sps)
+        fire_slots_env(seed, env_id, step, scalars, slot, 0)
+    cell_start, order, spos, cell_of, found, found_d2 = cells
+    reach = 2.0 * (scalars.max_range + abs(scalars.offset)) * (1.0 + 1e-6)
+    spread = sonar_spread(scalars)
     N = pos_b.shape[0]
     # crosstalk_path's scratch (row 0) and, without the grid, the candidate list (row 1; with it, the query's)
     xt_buf = np.empty((2, N if geometric else 0), dtype=np.int64)
-    cand = found if g.on else xt_buf[1]
+    cand = found if grid.on else xt_buf[1]
     for n in range(N):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
         n_cand = 0
         if geometric:
             n_found = N
-            if g.on:  # the grid ideal_env built
-                n_found = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, g.x0, g.y0, g.inv_cell, g.nx, g.ny,
-                                    cell_start, order, spos, found, found_d2)
+            if grid.on:  # the grid ideal_env built
+                n_found = query_env(pos_b[n, 0], pos_b[n, 1], reach, n, grid_layout(grid), cell_start, order, spos,
+                                    found, found_d2)
             # the other copters firing in n's slot (the others crosstalk_path skips), once for n's S sonars, compacted
             # without a branch (always write, advance on a match: with several slots a match is a coin flip the
             # processor cannot predict)
             for c in range(n_found):
-                m = found[c] if g.on else c
+                m = found[c] if grid.on else c
                 cand[n_cand] = m
                 n_cand += (slot[m] == slot[n]) & (m != n)
         for k in range(n_sonars):
-            path = crosstalk_path(n, k, sonar_buf, slot, sps, cand, n_cand, spread, xt_buf[0]) if geometric else np.inf
-            out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, sps)
-    if sp.correction.shape[0] > 0:  # the learned correction (sonar.correction_file)
-        correct_readings_env(out, dist, kind, sp.correction, sps.range_scale, sps.bias, sps.min_range, sps.max_range,
-                             seed, env_id, step)
+            path = crosstalk_path(n, k, sonar_buf, slot, scalars, cand, n_cand, spread, xt_buf[0]) if geometric else np.inf
+            out[n, k] = measured_reading(dist[n, k], kind[n, k] != HIT_NONE, path, key, k, scalars)
+    if sonar.correction.shape[0] > 0:  # the learned correction (sonar.correction_file)
+        correct_readings_env(out, dist, kind, sonar.correction, scalars, counter)
 
 
 @njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def down_env(alt_b, sp, seed, env_id, step, out):
+def down_env(alt_b, sonar, seed, env_id, step, out):
     """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
-    sps = sonar_scalars(sp)
+    scalars = sonar_scalars(sonar)
     for n in range(alt_b.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_SONAR)
         d = alt_b[n]
-        out[n] = clamp_reading(echo_reading(d, d <= sps.max_range, key, DOWN_SONAR, sps), sps)
+        out[n] = clamp_reading(echo_reading(d, d <= scalars.max_range, key, DOWN_SONAR, scalars), scalars)

@@ -132,39 +132,44 @@ _down_env_fn = twin(down_env)
 
 
 @njit(cache=True, parallel=True)
-def _batch(pos, yaw, theta, g, sp, seed, env_ids, steps, measure, dist, kind, hit, out, bulge):
-    """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] (so T×B trajectories flatten), the plates
-    moved by bulge (B, S) m along their normals (:func:`~finkensim.arena.shift_plates_env`; (B, 0): not);
-    g: :class:`WallGeometry`. Ideal values into dist/kind/hit; with ``measure`` also the readings into out.
+def _batch(pos, yaw, theta, bulge, geometry, sonar, counters, ideal, out):
+    """Rows b of pos/yaw/theta with their own env_ids[b] and steps[b] of counters = (seed, env_ids (B,), steps (B,))
+    (so T×B trajectories flatten), the plates moved by bulge (B, S) m along their normals
+    (:func:`~finkensim.arena.shift_plates_env`; (B, 0): not); geometry: :class:`WallGeometry`. Ideal values into ideal =
+    (dist, kind, hit); also the readings into out (B, N, S) m unless it is empty ((0, N, S): ideal values only).
     Every copter is tested against every ray (no cell grid: the reference the engine's grid is compared with)."""
     B, N, _ = pos.shape
-    S = g.plate_a.shape[0]
+    S = geometry.plate_a.shape[0]
+    seed, env_ids, steps = counters
+    dist, kind, hit = ideal
+    measure = out.shape[0] > 0
     for b in prange(B):
         pa = np.empty((S, 2))
         pb = np.empty((S, 2))
-        sonar_buf = np.empty((N, sp.mount_yaw.shape[0], 4))
+        sonar_buf = np.empty((N, sonar.mount_yaw.shape[0], 4))
         off = NO_GRID
         no = no_grid_buffers()
-        displaced_plates_env(theta[b], g.plate_a, g.plate_b, g.normal, g.lever, pa, pb)
+        displaced_plates_env(theta[b], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, pa, pb)
         if bulge.shape[1] > 0:
-            shift_plates_env(bulge[b], g.normal, pa, pb)
+            shift_plates_env(bulge[b], geometry.normal, pa, pb)
         if measure:
-            _ultrasonic_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, seed, env_ids[b], steps[b],
+            _ultrasonic_env_fn(pos[b], yaw[b], (pa, pb, geometry.width, geometry.length), sonar, (seed, env_ids[b], steps[b]),
                                (sonar_buf, dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64)), out[b], off, no)
         else:
-            _ideal_env_fn(pos[b], yaw[b], pa, pb, g.width, g.length, sp, sonar_buf, dist[b], kind[b], hit[b], off, no)
+            _ideal_env_fn(pos[b], yaw[b], (pa, pb, geometry.width, geometry.length), sonar, (sonar_buf, dist[b], kind[b], hit[b]), off,
+                          no)
 
 
 @njit(cache=True, parallel=True)
-def _down_batch(alt, sp, seed, env_ids, steps, out):
+def _down_batch(alt, sonar, seed, env_ids, steps, out):
     for b in prange(alt.shape[0]):
-        _down_env_fn(alt[b], sp, seed, env_ids[b], steps[b], out[b])
+        _down_env_fn(alt[b], sonar, seed, env_ids[b], steps[b], out[b])
 
 
 @njit(cache=True, parallel=True)
-def _slots_batch(sp, seed, env_ids, step, out):
+def _slots_batch(sonar, seed, env_ids, step, out):
     for b in prange(out.shape[0]):
-        fire_slots_env(seed, env_ids[b], step, sp, out[b], 0)
+        fire_slots_env(seed, env_ids[b], step, sonar, out[b], 0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -217,16 +222,16 @@ def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
         2 copter; hit_xy (B, N, 4, 2) m, the nearest hit point (also when beyond range, where hit_type is 0).
         Sonar order: front, left, back, right.
     """
-    sp = _check_model(params)
-    g = wall_geometry(arena)
-    pos, yaw, theta = _check_geometry(pos, yaw, theta, g)
+    sonar = _check_model(params)
+    geometry = wall_geometry(arena)
+    pos, yaw, theta = _check_geometry(pos, yaw, theta, geometry)
     B, N, _ = pos.shape
-    S_ = sp.n_sonars
+    S_ = sonar.n_sonars
     dist = np.empty((B, N, S_))
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
     none = np.zeros(B, dtype=np.int64)
-    _batch(pos, yaw, theta, g, sp, 0, none, none, False, dist, kind, hit, np.empty((B, N, S_)), np.zeros((B, 0)))
+    _batch(pos, yaw, theta, np.zeros((B, 0)), geometry, sonar, (0, none, none), (dist, kind, hit), np.empty((0, N, S_)))
     return dist, kind, hit
 
 
@@ -242,19 +247,19 @@ def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, e
         readings (B, N, 4) m in [min_range, max_range] (front, left, back, right); with
         ``return_ideal=True`` the tuple (readings, dist, hit_type, hit_xy) of :func:`ideal_ultrasonic`.
     """
-    sp = _check_model(params)
-    g = wall_geometry(arena)
-    pos, yaw, theta = _check_geometry(pos, yaw, theta, g)
+    sonar = _check_model(params)
+    geometry = wall_geometry(arena)
+    pos, yaw, theta = _check_geometry(pos, yaw, theta, geometry)
     B, N, _ = pos.shape
     env_ids = _check_env_ids(env_ids, B)
     steps = np.full(B, int(step), dtype=np.int64)
-    S_ = sp.n_sonars
+    S_ = sonar.n_sonars
     dist = np.empty((B, N, S_))
     kind = np.empty((B, N, S_), dtype=np.int64)
     hit = np.empty((B, N, S_, 2))
     out = np.empty((B, N, S_))
     shift = np.zeros((B, 0)) if bulge is None else np.ascontiguousarray(bulge, dtype=np.float64).reshape(B, -1)
-    _batch(pos, yaw, theta, g, sp, int(seed), env_ids, steps, True, dist, kind, hit, out, shift)
+    _batch(pos, yaw, theta, shift, geometry, sonar, (int(seed), env_ids, steps), (dist, kind, hit), out)
     if return_ideal:
         return out, dist, kind, hit
     return out
@@ -266,25 +271,25 @@ def down_readings(pos, params: SonarModel, seed: int, env_ids, step: int, altitu
     pos (B, N, 2) m gives the shape (B, N); ``altitude`` (m, scalar or (B, N)) defaults to
     ``params.altitude``. Random numbers: sonar index 4 of each copter's STREAM_SONAR cell.
     """
-    sp = _check_model(params)
+    sonar = _check_model(params)
     pos = np.asarray(pos)
     if pos.ndim != 3 or pos.shape[2] != 2:
         raise ConfigError(f"pos has shape {pos.shape}: expected (B, N, 2) m")
     B, N, _ = pos.shape
-    alt = sp.altitude if altitude is None else altitude
+    alt = sonar.altitude if altitude is None else altitude
     alt = np.ascontiguousarray(np.broadcast_to(np.asarray(alt, dtype=np.float64), (B, N)))
     env_ids = _check_env_ids(env_ids, B)
     out = np.empty((B, N))
-    _down_batch(alt, sp, int(seed), env_ids, np.full(B, int(step), dtype=np.int64), out)
+    _down_batch(alt, sonar, int(seed), env_ids, np.full(B, int(step), dtype=np.int64), out)
     return out
 
 
 def fire_slots(params: SonarModel, seed: int, env_ids, step: int, n_copters: int):
     """Firing slot of every copter, (B, N) int64 in [0, n_slots) (0 for ``simultaneous``)."""
-    sp = _check_model(params)
+    sonar = _check_model(params)
     env_ids = np.ascontiguousarray(env_ids, dtype=np.int64).reshape(-1)
     out = np.empty((env_ids.size, int(n_copters)), dtype=np.int64)
-    _slots_batch(sp, int(seed), env_ids, int(step), out)
+    _slots_batch(sonar, int(seed), env_ids, int(step), out)
     return out
 
 
@@ -303,13 +308,13 @@ def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_i
     :func:`ultrasonic_readings` on each recorded state. Returns readings (T, B, N, 4) m (and, with
     ``return_ideal``, dist (T, B, N, 4), hit_type (T, B, N, 4), hit_xy (T, B, N, 4, 2)).
     """
-    sp = _check_model(params)
-    g = wall_geometry(arena)
+    sonar = _check_model(params)
+    geometry = wall_geometry(arena)
     pose = np.asarray(traj.pose, dtype=np.float64)
     if pose.ndim != 4 or pose.shape[3] != 3:
         raise ConfigError(f"traj.pose has shape {pose.shape}: expected (T, B, N, 3)")
     T, B, N, _ = pose.shape
-    S = g.plate_a.shape[0]
+    S = geometry.plate_a.shape[0]
     theta = np.asarray(traj.theta, dtype=np.float64)
     if theta.shape != (T, B, S):
         raise ConfigError(f"traj.theta has shape {theta.shape}: expected (T, B, S) = ({T}, {B}, {S})")
@@ -319,12 +324,12 @@ def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_i
     th = np.ascontiguousarray(theta.reshape(T * B, S))
     ids = np.ascontiguousarray(np.tile(env_ids, T))
     steps = np.ascontiguousarray(np.repeat(int(step0) + np.arange(T, dtype=np.int64), B))
-    S_ = sp.n_sonars
+    S_ = sonar.n_sonars
     dist = np.empty((T * B, N, S_))
     kind = np.empty((T * B, N, S_), dtype=np.int64)
     hit = np.empty((T * B, N, S_, 2))
     out = np.empty((T * B, N, S_))
-    _batch(pos, yaw, th, g, sp, int(seed), ids, steps, True, dist, kind, hit, out, np.zeros((T * B, 0)))
+    _batch(pos, yaw, th, np.zeros((T * B, 0)), geometry, sonar, (int(seed), ids, steps), (dist, kind, hit), out)
     out = out.reshape(T, B, N, S_)
     if return_ideal:
         return (out, dist.reshape(T, B, N, S_), kind.reshape(T, B, N, S_),

@@ -27,7 +27,7 @@ from ..kernels.threads import run_ranges
 # the closed loop's compiled twins of the per-environment kernels: the same compilations
 from .kernel import body_to_world_twin, step_twin
 from .sense import SenseBuffers, sense_buffers, sense_env
-from .state import NO_RANGING_ROWS, RunSpec, SwarmState
+from .state import NO_RANGING_ROWS, SwarmState, run_spec
 
 __all__ = ["ControlReadings", "Controlled", "control_step", "control_range", "PARALLEL_MIN_COPTERS"]
 
@@ -53,16 +53,16 @@ def _control_env(b, state, run, cmd_body, obs, models, grid, work):
     s, cmd_v, cmd_w, dist_buf, gap_buf, no_grid = work
     # with the grid off, the chunk's own empty buffers: env_grid's views of the shared ones would be counted by
     # both threads on one reference count (an atomic on a contended cache line, per call)
-    grid_b = env_grid(grid, b) if grid.on else no_grid
+    cells = env_grid(grid, b) if grid.on else no_grid
     world = state.world
     if run.n_steps == 1:
         body_to_world_twin(world.yaw[b], cmd_body[b], cmd_v)
-        step_twin(world, b, cmd_v, cmd_w, models.copter, models.hinge, models.geometry, run.dt, dist_buf, gap_buf,
-                  grid, grid_b)
+        step_twin(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt, (dist_buf, gap_buf),
+                  grid, cells)
     # environment b's readings in obs, the chunk's scratch arrays around them
     buf = SenseBuffers(obs.sonar[b], s.sonar_ideal, s.sonar_hit, s.sonar_down, obs.ranging[b], obs.imu_acc[b],
                        obs.imu_gyro[b], s.plate_a, s.plate_b, s.sonar_rays, s.hit_point, s.slot, s.altitude, True)
-    sense_env(b, run.step0 + run.n_steps, state, run, models, buf, grid, grid_b)
+    sense_env(b, run.step0 + run.n_steps, state, run, models, buf, grid, cells)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True)
@@ -145,8 +145,8 @@ class Controlled:
                                 or any(a.dtype != np.float64 or not a.flags.c_contiguous for a in out)):
             raise ValueError(f"out has shapes {[a.shape for a in out]}: expected C-contiguous float64 arrays of shapes "
                              f"{list(want)}, as Controlled.readings({B}, {N}) makes them")
-        run = RunSpec(int(ws.seed), ws.env_ids, int(ws.step), n_steps, float(sim.dt), sim.enabled["sonar"],
-                      False, sim.enabled["ranging"], sim.enabled["imu"], NO_RANGING_ROWS, sim.lags)
+        run = run_spec(ws, n_steps, sim.dt, (sim.enabled["sonar"], False, sim.enabled["ranging"], sim.enabled["imu"]),
+                       NO_RANGING_ROWS, sim.lags, N + sim.beacons.shape[0])
         cmd = np.ascontiguousarray(cmd_body, dtype=np.float64) if cmd_body is not None else np.zeros((B, N, 2))
         if cmd.shape != (B, N, 2):
             raise ValueError(f"cmd_body has shape {cmd.shape}: expected (B, N, 2) = ({B}, {N}, 2)")

@@ -124,11 +124,11 @@ def _swarm_env(span, state, run, rec, models, params, grid):
     memory = state.behaviour
     N = world.pos.shape[1]
     R = N + models.beacons.shape[0]
-    wp = models.wall_check
+    wall_check = models.wall_check
     seed = run.seed
     # the wall check may look up each copter's ranging columns in range on the grid when the ranging ran on it
     # (not with a ranging latency: the delayed rows are not those of the current positions' grid)
-    near_on = run.do_ranging and grid.on and wp.ranging_max_range == models.ranging.max_range \
+    near_on = run.do_ranging and grid.on and wall_check.ranging_max_range == models.ranging.max_range \
         and run.lags[LAG_RANGING] == 0
     # then the wall check reads only the columns in range, so unless the readings are recorded the rest of each
     # ranging row need not be written at every step
@@ -145,7 +145,7 @@ def _swarm_env(span, state, run, rec, models, params, grid):
         if run.do_ranging:
             ranging = run.ranging_rows[b]
         else:
-            ranging = np.zeros((N, R)) if run.do_sonar and wp.mode != WALL_CHECK_NONE else np.zeros((N, 0))
+            ranging = np.zeros((N, R)) if run.do_sonar and wall_check.mode != WALL_CHECK_NONE else np.zeros((N, 0))
         # work buffers, once per environment
         buf = sense_buffers(np.full((N, 4), models.sonar.max_range), ranging, np.zeros((N, 2)), np.zeros(N), models,
                             fill)
@@ -155,20 +155,18 @@ def _swarm_env(span, state, run, rec, models, params, grid):
         cmd_w = np.zeros(N)
         dist_buf = np.empty(models.geometry.seg_a.shape[0])
         gap_buf = np.empty(N)
-        grid_b = env_grid(grid, b)
+        cells = env_grid(grid, b)
         for t in range(run.n_steps):
             k = run.step0 + t
             _record_state(t, b, world, rec)
             # 1. sense
-            sense_env(b, k, state, run, models, buf, grid, grid_b)
+            sense_env(b, k, state, run, models, buf, grid, cells)
             # 2. behave
             if run.do_imu:
-                dead_reckon_twin(buf.imu_acc, buf.imu_gyro, wp.dt, memory.dr_pos[b], memory.dr_vel[b],
+                dead_reckon_twin(buf.imu_acc, buf.imu_gyro, wall_check.dt, memory.dr_pos[b], memory.dr_vel[b],
                                  memory.dr_yaw[b])
             if run.do_sonar:
-                wall_check_twin(buf.sonar, ranging, wp, fail_buf, memory.fail_count[b], memory.wall[b],
-                                memory.anchor[b], memory.dr_pos[b], memory.dr_yaw[b], memory.wall_onsets[b],
-                                memory.wall_readings[b], (pos, grid, grid_b, near_on))
+                wall_check_twin(buf.sonar, ranging, wall_check, fail_buf, memory, b, (pos, grid, cells, near_on))
             inputs = BehaviourInput(pos, yaw, buf.sonar, memory.wall[b], buf.sonar_down, ranging, buf.imu_acc,
                                     buf.imu_gyro, seed, env, k, run.dt)
             if BODY_FRAME:
@@ -178,8 +176,8 @@ def _swarm_env(span, state, run, rec, models, params, grid):
                 behaviour_commands(inputs, params, memory.commands[b], cmd_v, cmd_w)
             _record_step(t, b, rec, buf, memory.wall[b], cmd_v, cmd_w)
             # 3. step
-            step_twin(world, b, cmd_v, cmd_w, models.copter, models.hinge, models.geometry, run.dt, dist_buf,
-                      gap_buf, grid, grid_b)
+            step_twin(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt,
+                      (dist_buf, gap_buf), grid, cells)
 
 
 _ENGINES: dict = {}

@@ -24,7 +24,7 @@ from numba import njit
 from ..arena import shift_plates_env
 from ..kernels.twin import INTERNAL, twin
 from ..sensors.imu import imu_env
-from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_columns, delay_env
+from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.sonar_hold import hold_env
 from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
@@ -81,7 +81,7 @@ def sense_buffers(sonar, ranging, imu_acc, imu_gyro, models, fill_ranging):
 
 
 @njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.twin)
-def sense_env(b, k, state, run, models, buf, grid, grid_b):
+def sense_env(b, k, state, run, models, buf, grid, cells):
     """The sensors of environment b at step k → ``buf`` (:class:`SenseBuffers`), each when ``run`` enables it:
     sonars on the plates displaced by their current angles and by the curtain bulge where the walls have one
     (``walls.model``; then held between measurements when ``sonar.update_hz`` > 0: ``memory.sonar_held``), the down
@@ -89,34 +89,31 @@ def sense_env(b, k, state, run, models, buf, grid, grid_b):
     latency (``run.lags``) then shows the reading of that many steps earlier (the ring buffer
     ``state.behaviour.sensor_delay``, :mod:`finkensim.sensors.latency`). state: :class:`~finkensim.swarm.state.SwarmState` (held readings in
     ``state.behaviour.sonar_held``); run: :class:`~finkensim.swarm.state.RunSpec`; models:
-    :class:`~finkensim.swarm.state.Models`; grid, grid_b: the batch's cell grid and environment b's buffers."""
+    :class:`~finkensim.swarm.state.Models`; grid, cells: the batch's cell grid and environment b's buffers."""
     world = state.world
     seed = run.seed
     env = run.env_ids[b]
     pos = world.pos[b]
     yaw = world.yaw[b]
-    geo = models.geometry
-    sp = models.sonar
+    geometry = models.geometry
+    sonar = models.sonar
     lags = run.lags
     delay = state.behaviour.sensor_delay[b]
-    if delay.shape[0] > 0:  # a sensor has a latency: its columns in the ring buffer
-        cols = delay_columns(lags, pos.shape[0] + models.beacons.shape[0])[0]
-    else:
-        cols = np.full(3, -1, dtype=np.int64)
+    cols = run.delay_columns  # each sensor's columns in the ring buffer, computed once per rollout
     if run.do_sonar:
-        plates_twin(world.theta[b], geo.plate_a, geo.plate_b, geo.normal, geo.lever, buf.plate_a, buf.plate_b)
+        plates_twin(world.theta[b], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, buf.plate_a, buf.plate_b)
         if world.bulge.shape[1] > 0:  # the curtain bulge (walls.model) on top of the hinge
-            shift_twin(world.bulge[b], geo.normal, buf.plate_a, buf.plate_b)
-        sonar_twin(pos, yaw, buf.plate_a, buf.plate_b, geo.width, geo.length, sp, seed, env, k,
-                   (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, grid_b)
-        if sp.update_hz > 0.0:
-            hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sp.update_hz, sp.update_phase)
+            shift_twin(world.bulge[b], geometry.normal, buf.plate_a, buf.plate_b)
+        sonar_twin(pos, yaw, (buf.plate_a, buf.plate_b, geometry.width, geometry.length), sonar, (seed, env, k),
+                   (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, cells)
+        if sonar.update_hz > 0.0:
+            hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sonar.update_hz, sonar.update_phase)
         if lags[LAG_SONAR] > 0:
             delay_twin(buf.sonar, delay, cols[LAG_SONAR], k, lags[LAG_SONAR])
     if run.do_down:
-        down_twin(buf.altitude, sp, seed, env, k, buf.sonar_down)
+        down_twin(buf.altitude, sonar, seed, env, k, buf.sonar_down)
     if run.do_ranging:
-        ranging_twin(pos, yaw, models.beacons, seed, env, k, models.ranging, buf.ranging, grid, grid_b,
+        ranging_twin(pos, yaw, models.beacons, (seed, env, k), models.ranging, buf.ranging, grid, cells,
                      buf.fill_ranging)
         if lags[LAG_RANGING] > 0:
             delay_twin(buf.ranging, delay, cols[LAG_RANGING], k, lags[LAG_RANGING])

@@ -21,8 +21,8 @@ from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic
 from ..world import World
 from ..kernels.cellgrid import engine_grid
 from .kernel import swarm_rollout
-from .state import NO_RANGING_ROWS, RECORDABLE, SENSOR_OF, Models, RunSpec, SensorReadings, SwarmRecord, \
-    SwarmState, concat_records, kernel_record
+from .state import NO_RANGING_ROWS, RECORDABLE, SENSOR_OF, Models, SensorReadings, SwarmRecord, \
+    SwarmState, concat_records, kernel_record, run_spec
 
 __all__ = ["SwarmSim", "needs_sensors", "check_behaviour_sensors"]
 
@@ -269,7 +269,7 @@ class SwarmSim:
             sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
                                                        env_ids, k, return_ideal=True, bulge=ws.bulge)
         down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
-        rng = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging, yaw=ws.yaw) if on["ranging"] else None
+        ranging = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging, yaw=ws.yaw) if on["ranging"] else None
         bias = state.imu_bias.copy()
         mem = state.behaviour.copy()
         if on["sonar"] and self.sonar.update_hz > 0.0:
@@ -280,7 +280,7 @@ class SwarmSim:
         if on["sonar"]:
             delay_batch(sonar, mem.sensor_delay, self.lags, LAG_SONAR, k, R)
         if on["ranging"]:
-            delay_batch(rng, mem.sensor_delay, self.lags, LAG_RANGING, k, R)
+            delay_batch(ranging, mem.sensor_delay, self.lags, LAG_RANGING, k, R)
         imu_acc = imu_gyro = None
         if on["imu"]:
             imu_acc, imu_gyro = imu_step(ws.acc, ws.yaw, ws.yaw_rate, bias, self.imu, seed, env_ids, k)
@@ -288,11 +288,11 @@ class SwarmSim:
             delay_batch(imu_gyro, mem.sensor_delay, self.lags, LAG_IMU, k, R, offset=2)
             dead_reckon(imu_acc, imu_gyro, mem, self.wall_check)
         if on["sonar"]:
-            rng_in = rng if rng is not None else np.zeros((B, N, N + self.beacons.shape[0]))
-            wall = wall_check(sonar, rng_in, self.wall_check, mem)
+            ranging_in = ranging if ranging is not None else np.zeros((B, N, N + self.beacons.shape[0]))
+            wall = wall_check(sonar, ranging_in, self.wall_check, mem)
         else:
             wall = mem.wall.copy()
-        readings = SensorReadings(sonar=sonar, sonar_down=down, ranging=rng, imu_acc=imu_acc, imu_gyro=imu_gyro,
+        readings = SensorReadings(sonar=sonar, sonar_down=down, ranging=ranging, imu_acc=imu_acc, imu_gyro=imu_gyro,
                                   wall=wall, step=k, dt=self.dt, seed=seed, env_ids=env_ids.copy())
         return readings, bias, mem, ideal, hit
 
@@ -452,9 +452,8 @@ class SwarmSim:
         else:
             new = state.copy()
             w = new.world
-            run = RunSpec(int(w.seed), w.env_ids, int(w.step), T, float(self.dt),
-                          self.enabled["sonar"], self.enabled["down"], self.enabled["ranging"], self.enabled["imu"],
-                          self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS, self.lags)
+            run = run_spec(w, T, self.dt, tuple(self.enabled[s] for s in ("sonar", "down", "ranging", "imu")),
+                           self._ranging_rows(B, N, R) if self.enabled["ranging"] else NO_RANGING_ROWS, self.lags, R)
             self._check_delay(new.behaviour.sensor_delay, B, N)
             swarm_rollout(new.for_kernels(), run, kernel_record(rec), self.models(),
                           engine_grid(self.world.grid, w.n_envs, w.n_copters), self.behaviour, self.params)

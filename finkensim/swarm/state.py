@@ -10,10 +10,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..behaviours.wall_check import BehaviourState
+from ..sensors.latency import delay_columns
 from ..world import WorldState
 
 __all__ = ["RECORDABLE", "SENSOR_OF", "SensorReadings", "SwarmState", "SwarmRecord", "RunSpec",
-           "NO_RANGING_ROWS", "kernel_record", "Models"]
+           "NO_RANGING_ROWS", "run_spec", "kernel_record", "Models"]
 
 #: Arrays :meth:`SwarmSim.rollout <finkensim.swarm.SwarmSim.rollout>` can record per step, with their
 #: shapes. Sensor arrays exist only when their sensor is enabled.
@@ -147,7 +148,9 @@ class RunSpec(NamedTuple):
     state's step), n_steps, dt s, which sensors run (sonar, down, ranging, imu), and
     ranging_rows (B, N, N + M) float64 m: the work buffer of the ranging rows (uninitialised; every entry the step
     reads is written in it first; (0, 0, 0) where the kernel takes no rows from it); lags (3,) int64: sonar, ranging
-    and IMU latency in steps (:func:`~finkensim.sensors.latency.sensor_lags`; zeros: none)."""
+    and IMU latency in steps (:func:`~finkensim.sensors.latency.sensor_lags`; zeros: none); delay_columns (3,) int64:
+    the first column of each sensor's block in the latency ring buffer (−1: no lag), computed once per rollout
+    (:func:`~finkensim.sensors.latency.delay_columns`, :func:`run_spec`)."""
 
     seed: int
     env_ids: np.ndarray
@@ -160,6 +163,40 @@ class RunSpec(NamedTuple):
     do_imu: bool
     ranging_rows: np.ndarray
     lags: np.ndarray = np.zeros(3, dtype=np.int64)
+    delay_columns: np.ndarray = np.full(3, -1, dtype=np.int64)
+
+
+def run_spec(world, n_steps: int, dt: float, sensors: tuple, ranging_rows: np.ndarray, lags: np.ndarray,
+             n_ranging: int) -> RunSpec:
+    """The :class:`RunSpec` of a rollout from ``world`` (its seed, env_ids and step), with the latency ring buffer's
+    column offsets computed once here for ``lags`` and ``n_ranging`` = N + M ranging columns.
+
+    Parameters
+    ----------
+    world : WorldState
+        The state the rollout starts from.
+    n_steps : int
+        Steps to run.
+    dt : float
+        The step, s.
+    sensors : tuple
+        (sonar, down, ranging, imu): which sensors run.
+    ranging_rows : numpy.ndarray
+        The ranging rows' work buffer (B, N, N + M), or :data:`NO_RANGING_ROWS`.
+    lags : numpy.ndarray
+        (3,) int64 sensor latencies in steps.
+    n_ranging : int
+        Ranging columns N + M.
+
+    Returns
+    -------
+    RunSpec
+        The record.
+    """
+    lags = np.asarray(lags, dtype=np.int64)
+    columns = delay_columns(lags, int(n_ranging))[0]
+    return RunSpec(int(world.seed), world.env_ids, int(world.step), int(n_steps), float(dt), *(bool(s) for s in sensors),
+                   ranging_rows, lags, columns)
 
 
 def kernel_record(arrays: dict) -> SwarmRecord:

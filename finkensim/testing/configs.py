@@ -101,7 +101,10 @@ def field_values(section: str, key: str, bounds: tuple[float, float] | None = No
     if t == "bool":
         return st.booleans()
     if t == "str":
-        return st.sampled_from(meta["choices"]) if meta["choices"] is not None else st.just(default)
+        if meta["choices"] is None:
+            return st.just(default)
+        # the built-in names of a registry (NameRegistry): what a session registered does not change the draws
+        return st.sampled_from(getattr(meta["choices"], "builtin", meta["choices"]))
     if t == "tuple[str, ...]":
         if dotted not in _STRING_CHOICES:
             return st.just(default)

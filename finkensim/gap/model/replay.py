@@ -30,10 +30,11 @@ from ...kernels.geometry import point_segment_distance
 from ...kernels.raycast import HIT_NONE, HIT_WALL, plate_bands
 from ...kernels.trig import sin_fast
 from ...sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire_slots_env, shifted_plates_env, sonar_hit,
-                                     sonar_poses_env, sonar_spread, store_ideal)
+                                     sonar_pose, sonar_poses_env, sonar_spread, store_ideal)
+from ...sensors.ranging_radio import tag_distance_draws
 from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
-from ...sensors.tracking import PoseNoise, draw_poses, draw_poses_from, pose_draw, pose_normal_table
+from ...sensors.tracking import PoseNoise, draw_poses_from, pose_draw, pose_normal_table
 
 
 class GapInputError(ValueError):
@@ -198,17 +199,20 @@ class ReplayPoses(NamedTuple):
 
 
 @njit(cache=True)
-def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_kind, out_xtalk):
-    """The M pose draws at sample k into row ti of the outputs, for the rays with need[ti, n, s] (the others get
-    NaN, HIT_NONE, inf): the plates (which no pose draw moves) are placed once, the work arrays allocated once."""
+def _sonar_draws_at(poses, geometry, sonar, gain, k, noise, z, ti, need, out):
+    """The M = z.shape[1] pose draws at sample k into row ti of the outputs out = (out_dist, out_kind, out_xtalk), for
+    the rays with need[ti, n, s] (the others get NaN, HIT_NONE, inf): the plates (which no pose draw moves) are placed
+    once, the work arrays allocated once."""
+    out_dist, out_kind, out_xtalk = out
+    M = z.shape[1]
     N = poses.pos.shape[1]
-    mount_yaw = sp.mount_yaw
-    rays = sp.ray_angles
-    sps = sonar_scalars(sp)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
-    geometric = sps.crosstalk & CROSSTALK_GEOMETRIC  # only geometric cross-talk reads the paths
-    spread = sonar_spread(sps)
+    mount_yaw = sonar.mount_yaw
+    rays = sonar.ray_angles
+    scalars = sonar_scalars(sonar)  # the per-ray calls take the scalars and the arrays apart (see SonarScalars)
+    geometric = scalars.crosstalk & CROSSTALK_GEOMETRIC  # only geometric cross-talk reads the paths
+    spread = sonar_spread(scalars)
     S = mount_yaw.shape[0]
-    P = w.plate_a.shape[0]
+    P = geometry.plate_a.shape[0]
     pos_m = np.empty((N, 2))
     yaw_m = np.empty(N)
     pa = np.empty((P, 2))
@@ -220,19 +224,20 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
     hit = np.empty((N, S, 2))
     all_ = np.empty(0, dtype=np.int64)  # "every copter" for the ray and cross-talk searches
     scratch = np.empty(N, dtype=np.int64)  # crosstalk_path's
-    shifted_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, gain, pa, pb)
+    shifted_plates_env(poses.theta[k], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, gain, pa, pb)
     for p in range(P):
         b = poses.bulge[k, p]
-        pa[p, 0] += b * w.normal[p, 0]
-        pa[p, 1] += b * w.normal[p, 1]
-        pb[p, 0] += b * w.normal[p, 0]
-        pb[p, 1] += b * w.normal[p, 1]
-    bands = plate_bands(pa, pb, w.width, w.length)
+        pa[p, 0] += b * geometry.normal[p, 0]
+        pa[p, 1] += b * geometry.normal[p, 1]
+        pb[p, 0] += b * geometry.normal[p, 0]
+        pb[p, 1] += b * geometry.normal[p, 1]
+    bands = plate_bands(pa, pb, geometry.width, geometry.length)
+    walls = (pa, pb, geometry.width, geometry.length)
     for m in range(M):
         draw_poses_from(poses.pos, poses.yaw, k, z[ti, m], noise.sigma_xy, noise.sigma_yaw, pos_m, yaw_m)
-        sonar_poses_env(pos_m, yaw_m, sp, buf)
+        sonar_poses_env(pos_m, yaw_m, sonar, buf)
         if geometric:
-            fire_slots_env(noise.seed, noise.flight_id, k, sps, slots, m)
+            fire_slots_env(noise.seed, noise.flight_id, k, scalars, slots, m)
         for n in range(N):
             for s in range(S):
                 if not need[ti, n, s]:
@@ -240,19 +245,19 @@ def _sonar_draws_at(poses, w, sp, gain, k, M, noise, z, ti, need, out_dist, out_
                     out_kind[ti, n, s, m] = HIT_NONE
                     out_xtalk[ti, n, s, m] = np.inf
                     continue
-                t_, hk, hx, hy = sonar_hit(n, s, yaw_m[n] + mount_yaw[s], pos_m, pa, pb, w.width, w.length, sps,
-                                           rays, buf, bands, all_, -1)
-                store_ideal(n, s, t_, hk, hx, hy, sps.max_range, buf, dist, kind, hit)
+                pose = sonar_pose(buf, n, s)
+                echo = sonar_hit(n, pose, yaw_m[n] + mount_yaw[s], pos_m, walls, scalars, rays, bands, all_, -1)
+                store_ideal(n, s, echo, scalars.max_range, pose, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
-                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, sps, all_, -1, spread, scratch) if geometric else np.inf
+                out_xtalk[ti, n, s, m] = crosstalk_path(n, s, buf, slots, scalars, all_, -1, spread, scratch) if geometric else np.inf
 
 
-def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, out_xtalk, z=None):
+def sonar_draws(poses, geometry, sonar, gain, times, noise, M, need, out_dist, out_kind, out_xtalk, z=None):
     """Ideal sonar readings and cross-talk paths for M pose draws at each time in ``times``, computed
     with the simulator's own kernels (:mod:`finkensim.sensors.sonar_kernels`).
 
-    poses: :class:`ReplayPoses`; w: the :class:`~finkensim.sensors.sonar_model.WallGeometry`; sp: the
+    poses: :class:`ReplayPoses`; geometry: the :class:`~finkensim.sensors.sonar_model.WallGeometry`; sonar: the
     :class:`~finkensim.sensors.sonar_model.SonarModel` (mounting, offset and radius from the log; its beam
     rays, range, cone and schedule); gain scales the plate displacement
     (:func:`~finkensim.sensors.sonar_kernels.shifted_plates_env`); noise: :class:`PoseNoise`; z: the pose draws'
@@ -261,7 +266,7 @@ def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, o
     (K, N, S, M) m: the shortest emitter → receiver path heard under geometric cross-talk
     (:func:`~finkensim.sensors.sonar_kernels.crosstalk_path`) among the copters firing in the receiver's
     slot — the slots of draw m use uniform m of each copter's schedule cell, so the ensemble spreads over
-    the schedules a random-offset sonar may have used; inf if none, and everywhere when ``sp`` models no geometric
+    the schedules a random-offset sonar may have used; inf if none, and everywhere when ``sonar`` models no geometric
     cross-talk (nothing reads the paths then). Only the rays with need (K, N, S) bool are
     cast (a fit scores a subset of the readings); the others read NaN, HIT_NONE and inf.
     """
@@ -270,31 +275,34 @@ def sonar_draws(poses, w, sp, gain, times, noise, M, need, out_dist, out_kind, o
         pose_normal_table(times, poses.pos.shape[1], M, noise.seed, noise.flight_id, z)
     if z.shape != (times.shape[0], M, poses.pos.shape[1], 3):
         raise ValueError(f"pose normals z {z.shape}: expected (K, M, N, 3) = {(times.shape[0], M, poses.pos.shape[1], 3)}")
-    _sonar_draws(poses, w, sp, gain, times, noise, M, z, need, out_dist, out_kind, out_xtalk)
+    _sonar_draws(poses, geometry, sonar, gain, times, noise, z, need, (out_dist, out_kind, out_xtalk))
 
 
 @njit(cache=True, parallel=True)
-def _sonar_draws(poses, w, sp, gain, times, noise, M, z, need, out_dist, out_kind, out_xtalk):
-    """The loop of :func:`sonar_draws` over its times."""
+def _sonar_draws(poses, geometry, sonar, gain, times, noise, z, need, out):
+    """The loop of :func:`sonar_draws` over its times (M = z.shape[1] draws; out = (out_dist, out_kind,
+    out_xtalk))."""
     for ti in prange(times.shape[0]):
-        _sonar_draws_at(poses, w, sp, gain, times[ti], M, noise, z, ti, need, out_dist, out_kind, out_xtalk)
+        _sonar_draws_at(poses, geometry, sonar, gain, times[ti], noise, z, ti, need, out)
 
 
 @njit(cache=True)
-def _sonar_context(P2, yaw_k, theta_k, w, pa, pb, sp, n, s, t_, hk, hx, hy, out):
-    """Features 2, 3, 5 of a wall hit (see :func:`sonar_features`) into out (8,); pa, pb (S_p, 2) m the
-    displaced plate surfaces."""
+def _sonar_context(P2, yaw_k, theta_k, geometry, plates, sonar, n, s, echo, out):
+    """Features 2, 3, 5 of a wall hit (see :func:`sonar_features`) into out (8,); plates = (pa, pb) (S_p, 2) m the
+    displaced plate surfaces; echo = (t_, hk, hx, hy) of :func:`~finkensim.sensors.sonar_kernels.sonar_hit`."""
+    pa, pb = plates
+    t_, hk, hx, hy = echo
     out[2] = np.nan
     out[3] = np.nan
     out[5] = np.nan
-    if hk != HIT_WALL or t_ > sp.max_range:
+    if hk != HIT_WALL or t_ > sonar.max_range:
         return
-    psi = yaw_k[n] + sp.mount_yaw[s]
+    psi = yaw_k[n] + sonar.mount_yaw[s]
     dx = np.cos(psi)
     dy = np.sin(psi)
     # the wall line the ray meets (nearest of the four) gives the normal
-    dl = min(min(hx, w.width - hx), min(hy, w.length - hy))
-    if dl == hx or dl == w.width - hx:
+    dl = min(min(hx, geometry.width - hx), min(hy, geometry.length - hy))
+    if dl == hx or dl == geometry.width - hx:
         out[2] = np.degrees(np.arccos(min(1.0, abs(dx))))
     else:
         out[2] = np.degrees(np.arccos(min(1.0, abs(dy))))
@@ -311,12 +319,12 @@ def _sonar_context(P2, yaw_k, theta_k, w, pa, pb, sp, n, s, t_, hk, hx, hy, out)
         d = point_segment_distance(hx, hy, pa[p, 0], pa[p, 1], pb[p, 0], pb[p, 1])
         if d < bd:
             bd = d
-            bs = w.lever * sin_fast(theta_k[p])
+            bs = geometry.lever * sin_fast(theta_k[p])
     out[5] = bs
 
 
 @njit(cache=True, parallel=True)
-def sonar_features(poses, w, sp, times, sigma_xy, sigma_yaw, out):
+def sonar_features(poses, geometry, sonar, times, sigma_xy, sigma_yaw, out):
     """Context features of every sonar reading at the logged poses → out (K, N, S, 8):
 
     0 true_range (m), 1 hit_type (0 none, 1 wall, 2 copter), 2 incidence (deg, ray vs wall
@@ -328,41 +336,42 @@ def sonar_features(poses, w, sp, times, sigma_xy, sigma_yaw, out):
     range limit, divided by σ_xy + σ_ψ·distance; inf without noise). Readings with a small
     ambiguity have an ideal value that flips under tracking noise.
 
-    poses: :class:`ReplayPoses`; w: the WallGeometry; sp: the SonarModel with one ray along each sonar's heading
-    (``sp.with_beam(0.0, 1)``); ``sp.cos_half_angle`` is the cone of feature 4.
+    poses: :class:`ReplayPoses`; geometry: the WallGeometry; sonar: the SonarModel with one ray along each sonar's heading
+    (``sonar.with_beam(0.0, 1)``); ``sonar.cos_half_angle`` is the cone of feature 4.
     """
     K = times.shape[0]
     N = poses.pos.shape[1]
-    S = sp.mount_yaw.shape[0]
-    P = w.plate_a.shape[0]
+    S = sonar.mount_yaw.shape[0]
+    P = geometry.plate_a.shape[0]
     for ti in prange(K):
         k = times[ti]
         pa = np.empty((P, 2))
         pbb = np.empty((P, 2))
         buf = np.empty((N, S, 4))
-        displaced_plates_env(poses.theta[k], w.plate_a, w.plate_b, w.normal, w.lever, pa, pbb)
+        displaced_plates_env(poses.theta[k], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, pa, pbb)
         P2 = poses.pos[k]
-        sonar_poses_env(P2, poses.yaw[k], sp, buf)
-        bands = plate_bands(pa, pbb, w.width, w.length)
+        sonar_poses_env(P2, poses.yaw[k], sonar, buf)
+        bands = plate_bands(pa, pbb, geometry.width, geometry.length)
         for n in range(N):
-            wd = min(min(P2[n, 0], w.width - P2[n, 0]), min(P2[n, 1], w.length - P2[n, 1]))
+            wd = min(min(P2[n, 0], geometry.width - P2[n, 0]), min(P2[n, 1], geometry.length - P2[n, 1]))
             for s in range(S):
-                t_, hk, hx, hy = sonar_hit(n, s, poses.yaw[k, n] + sp.mount_yaw[s], P2, pa, pbb, w.width, w.length,
-                                           sp, sp.ray_angles, buf, bands, np.empty(0, dtype=np.int64), -1)
+                echo = sonar_hit(n, sonar_pose(buf, n, s), poses.yaw[k, n] + sonar.mount_yaw[s], P2,
+                                 (pa, pbb, geometry.width, geometry.length), sonar, sonar.ray_angles, bands, np.empty(0, dtype=np.int64), -1)
+                t_, hk, hx, hy = echo
                 o = out[ti, n, s]
                 o[6] = wd
-                if t_ > sp.max_range:
-                    o[0] = sp.max_range
+                if t_ > sonar.max_range:
+                    o[0] = sonar.max_range
                     o[1] = HIT_NONE
                 else:
                     o[0] = t_
                     o[1] = hk
-                _sonar_context(P2, poses.yaw[k], poses.theta[k], w, pa, pbb, sp, n, s, t_, hk, hx, hy, o)
-                o[4], o[7] = _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw)
+                _sonar_context(P2, poses.yaw[k], poses.theta[k], geometry, (pa, pbb), sonar, n, s, echo, o)
+                o[4], o[7] = _beam_neighbours(P2, buf, n, s, t_, sonar, sigma_xy, sigma_yaw)
 
 
 @njit(cache=True)
-def _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw):
+def _beam_neighbours(P2, buf, n, s, t_, sonar, sigma_xy, sigma_yaw):
     """(neighbor_in_beam 0/1, ambiguity) of sonar s of copter n with ray length t_ (see :func:`sonar_features`)."""
     ox = buf[n, s, 0]
     oy = buf[n, s, 1]
@@ -376,44 +385,28 @@ def _beam_neighbours(P2, buf, n, s, t_, sp, sigma_xy, sigma_yaw):
         wx = P2[q, 0] - ox
         wy = P2[q, 1] - oy
         L = np.sqrt(wx * wx + wy * wy)
-        if 0.0 < L <= sp.max_range and dx * wx + dy * wy >= sp.cos_half_angle * L:
+        if 0.0 < L <= sonar.max_range and dx * wx + dy * wy >= sonar.cos_half_angle * L:
             inb = 1.0
         along = dx * wx + dy * wy
-        if along > 0.0 and along < min(t_, sp.max_range) + sp.radius:
+        if along > 0.0 and along < min(t_, sonar.max_range) + sonar.radius:
             perp = abs(dx * wy - dy * wx)
             sc = sigma_xy * 1.4142 + sigma_yaw * along
             if sc > 0.0:
-                amb = min(amb, abs(perp - sp.radius) / sc)
+                amb = min(amb, abs(perp - sonar.radius) / sc)
     sc = sigma_xy * 1.4142 + sigma_yaw * t_
     if sc > 0.0 and np.isfinite(t_):
-        amb = min(amb, abs(t_ - sp.max_range) / sc)
+        amb = min(amb, abs(t_ - sonar.max_range) / sc)
     return inb, amb
 
 
 # --------------------------------------------------------------------------------------- ranging
 
-@njit(cache=True, parallel=True)
 def ranging_draws(pos, z, yaw, times, noise, M, out):
     """True copter distances for M pose draws: out (K, N, N, M) m (diagonal 0), 3-D with the heights z (T, N) m
     (zeros: horizontal distances, bit for bit). noise: :class:`PoseNoise` (ranging has no direction: pass
-    sigma_yaw = 0; heights are not perturbed)."""
-    K = times.shape[0]
-    N = pos.shape[1]
-    for i in prange(K * M):
-        ti = i // M
-        m = i % M
-        k = times[ti]
-        P = np.empty((N, 2))
-        draw_poses(pos, yaw, k, m, noise, P, np.empty(N))
-        for a in range(N):
-            out[ti, a, a, m] = 0.0
-            for b in range(a + 1, N):
-                dx = P[a, 0] - P[b, 0]
-                dy = P[a, 1] - P[b, 1]
-                dz = z[k, a] - z[k, b]
-                d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                out[ti, a, b, m] = d
-                out[ti, b, a, m] = d
+    sigma_yaw = 0; heights are not perturbed). The radio's kernel
+    :func:`~finkensim.sensors.ranging_radio.tag_distance_draws` without tag offsets (one loop for both)."""
+    tag_distance_draws(pos, z, yaw, times, noise, M, None, out)
 
 
 @njit(cache=True, parallel=True)
