@@ -17,6 +17,10 @@ $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[test,docs]"
+	@# the byte code of what `make demo` installed without it (pip --no-compile below): else, with
+	@# PYTHONDONTWRITEBYTECODE set, every process of the suite would compile numpy's, scipy's, … sources at import
+	$(BIN)/python -m compileall -q -j 0 $$($(BIN)/python -c "import sysconfig; print(sysconfig.get_path('purelib'))") \
+		>/dev/null || true
 	touch $(STAMP) $(DEMO_STAMP)
 
 # --no-compile: pip does not byte-compile every module of the dependencies (12.6 of its 23.3 s of CPU, measured in
