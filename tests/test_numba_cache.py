@@ -143,12 +143,27 @@ def test_progress_bar_says_compiling_instead_of_an_eta():
     assert COMPILING == "compiling (first run only)…"
 
 
-def test_compile_command_runs_its_jobs(capsys):
+#: the default scenario with a small diagnosis (one candidate effect, CI-sized draws): the compile command's gap job
+#: runs the same code as with the whole catalogue, at a fraction of the fitting
+SMALL_GAP_SCENARIO = """
+[gap]
+effects = ["sonar_bias"]
+draws = 12
+max_samples_per_flight = 300
+fit_max_readings = 5000
+n_boot = 200
+"""
+
+
+def test_compile_command_runs_its_jobs(capsys, tmp_path):
     """finkensim compile --gap on one worker process (the suite's cache; compiling in the test process itself would
     leave freshly compiled LLVM modules that later tests of the process see): one line per job or kernel, exit 0."""
     from finkensim.cli import main
+    from finkensim.default_scenario import DEFAULT_SCENARIO_TOML
 
-    assert main(["compile", "--workers", "1", "--gap"]) == 0
+    scenario = tmp_path / "small_gap.toml"
+    scenario.write_text(DEFAULT_SCENARIO_TOML + SMALL_GAP_SCENARIO)
+    assert main(["compile", str(scenario), "--workers", "1", "--gap"]) == 0
     out = capsys.readouterr().out
     assert "3 jobs (closed loop, flight log and figures, gap diagnosis)" in out and "kernels compiled in" in out
     assert main(["compile", "--workers", "-1"]) == 2
