@@ -96,9 +96,11 @@ def sensor_blocks(cfg: Config, rec: SwarmRecord, seed: int, env_ids, step0: int 
             extras["ranging_beacons"] = np.ascontiguousarray(rows[:, :, N:])
             extras["beacon_positions"] = beacons
         if ideal:
-            extras["ranging_ideal"] = np.stack([
-                ranging_readings(np.ascontiguousarray(rec.pose[k, :, :, :2]), beacons, seed, env_ids,
-                                 step0 + k, model, ideal=True, yaw=rec.pose[k, :, :, 2])[0, :, :N] for k in range(T)])
+            # the error-free values draw no random numbers (no seed, step or environment enters them): the T samples
+            # as one batch of T rows, one parallel call instead of one per sample, the same values
+            extras["ranging_ideal"] = np.ascontiguousarray(ranging_readings(
+                np.ascontiguousarray(rec.pose[:, 0, :, :2]), beacons, seed, np.repeat(np.asarray(env_ids)[:1], T),
+                step0, model, ideal=True, yaw=np.ascontiguousarray(rec.pose[:, 0, :, 2]))[:, :, :N])
     if cfg.imu.enabled:
         out["imu_acc"] = np.ascontiguousarray(rec.imu_acc[:, 0])
         out["imu_gyro"] = np.ascontiguousarray(rec.imu_gyro[:, 0])

@@ -1,5 +1,7 @@
-"""Suite-wide checks, and the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md)."""
+"""Suite-wide checks, the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md), and an opt-in
+log of numba's compilations (``FINKENSIM_COMPILE_LOG=path``, docs/performance.md)."""
 import os
+import time
 
 import numba
 import pytest
@@ -7,6 +9,64 @@ import pytest
 from finkensim.testing.profiles import load_profile
 
 load_profile()
+
+#: environment variable naming a file to which every pytest process (each xdist worker) appends one line per outermost
+#: numba compilation: pid, xdist worker, seconds, kernel, argument types, test; the summary counts the seconds of
+#: kernels that several processes compiled for the same argument types
+COMPILE_LOG = "FINKENSIM_COMPILE_LOG"
+
+
+def _log_compilations(path: str) -> None:
+    """Append a tab-separated line to ``path`` for each outermost compilation of this process (numba's
+    ``numba:compile`` events; callees compiled inside a kernel's compilation are part of its seconds)."""
+    from numba.core import event
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+
+    class _Log(event.Listener):
+        def __init__(self):
+            self.stack = []
+
+        def on_start(self, ev):
+            disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            name = getattr(getattr(disp, "py_func", None), "__qualname__", None) or str(disp)
+            self.stack.append((time.perf_counter(), name, ev))
+
+        def on_end(self, ev):
+            if not self.stack:
+                return
+            t0, name, ev = self.stack.pop()
+            if self.stack:
+                return
+            test = os.environ.get("PYTEST_CURRENT_TEST", "").split(" ")[0]
+            args = ev.data.get("args") if isinstance(ev.data, dict) else None
+            with open(path, "a") as f:
+                f.write(f"{os.getpid()}\t{worker}\t{time.perf_counter() - t0:.2f}\t{name}\t{args}\t{test}\n")
+
+    event.register("numba:compile", _Log())
+
+
+def pytest_configure(config):
+    if os.environ.get(COMPILE_LOG):
+        _log_compilations(os.environ[COMPILE_LOG])
+
+
+def _compile_log_summary(write, path: str) -> None:
+    """How many seconds went into compilations that another process had made too (same kernel and signature)."""
+    try:
+        rows = [line.rstrip("\n").split("\t") for line in open(path)]
+    except OSError:
+        return
+    by_kernel: dict = {}
+    for pid, _, seconds, name, args, _test in (r for r in rows if len(r) == 6):
+        by_kernel.setdefault((name, args), []).append((float(seconds), pid))
+    total = sum(s for runs in by_kernel.values() for s, _ in runs)
+    again = [(key, runs) for key, runs in by_kernel.items() if len({pid for _, pid in runs}) > 1]
+    extra = sum(sum(sorted(s for s, _ in runs)[:-1]) for _, runs in again)
+    write(f"numba compilations ({COMPILE_LOG}={path}): {len(rows)} in {total:.1f} s; {len(again)} kernel(s) compiled "
+          f"by more than one process, {extra:.1f} s of it beyond each kernel's longest compilation")
+    for (name, _), runs in sorted(again, key=lambda kr: -sum(s for s, _ in kr[1]))[:10]:
+        write(f"  {name}: {len(runs)} times, {sum(s for s, _ in runs):.1f} s")
 
 
 @pytest.fixture(autouse=True)
@@ -34,8 +94,12 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_terminal_summary(terminalreporter):
-    """The fuzz suite's counts per category (``make fuzz`` prints them; docs/reliability.md quotes them)."""
+    """The fuzz suite's counts per category (``make fuzz`` prints them; docs/reliability.md quotes them), and with
+    ``FINKENSIM_COMPILE_LOG`` the compilations several processes made."""
     import sys
+
+    if os.environ.get(COMPILE_LOG) and not hasattr(terminalreporter.config, "workerinput"):
+        _compile_log_summary(terminalreporter.write_line, os.environ[COMPILE_LOG])
 
     mod = sys.modules.get("tests.test_fuzz_cli")
     counts = getattr(mod, "COUNTS", None)

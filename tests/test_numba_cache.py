@@ -85,22 +85,31 @@ def first_call():
     return jit.kernels
 
 if __name__ == "__main__":
+    from finkensim.sweep.executors import dask_client
+
     here = first_call()
     with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
         worker = pool.submit(first_call).result()
-    print(json.dumps(dict(here=here, worker=worker)))
+    client, cluster = dask_client(1, None)  # a LocalCluster of one worker process, as a Dask sweep starts it
+    try:
+        dask_worker = client.submit(first_call, pure=False).result()
+    finally:
+        client.close()
+        cluster.close()
+    print(json.dumps(dict(here=here, worker=worker, dask_worker=dask_worker)))
 """
 
 
 def test_every_process_loads_what_one_compiled(tmp_path):
-    """A fresh cache: the first process compiles; the next process and a spawned pool worker only load."""
+    """A fresh cache: the first process compiles; the next process, a spawned pool worker and a Dask worker only
+    load (counted by numba's compile events, :func:`finkensim.compiletime.compile_timer`, not by the clock)."""
     script = tmp_path / "first_call.py"
     script.write_text(_FIRST_CALL)
     code = f"import runpy; runpy.run_path({str(script)!r}, run_name='__main__')"
     first = _python(code, {"XDG_CACHE_HOME": str(tmp_path / "cache")})
-    assert first["here"] >= 1 and first["worker"] == 0
+    assert first["here"] >= 1 and first["worker"] == 0 and first["dask_worker"] == 0
     again = _python(code, {"XDG_CACHE_HOME": str(tmp_path / "cache")})
-    assert again == {"here": 0, "worker": 0}
+    assert again == {"here": 0, "worker": 0, "dask_worker": 0}
 
 
 class _Bar:
@@ -134,12 +143,27 @@ def test_progress_bar_says_compiling_instead_of_an_eta():
     assert COMPILING == "compiling (first run only)…"
 
 
-def test_compile_command_runs_its_jobs(capsys):
+#: the default scenario with a small diagnosis (one candidate effect, CI-sized draws): the compile command's gap job
+#: runs the same code as with the whole catalogue, at a fraction of the fitting
+SMALL_GAP_SCENARIO = """
+[gap]
+effects = ["sonar_bias"]
+draws = 12
+max_samples_per_flight = 300
+fit_max_readings = 5000
+n_boot = 200
+"""
+
+
+def test_compile_command_runs_its_jobs(capsys, tmp_path):
     """finkensim compile --gap on one worker process (the suite's cache; compiling in the test process itself would
     leave freshly compiled LLVM modules that later tests of the process see): one line per job or kernel, exit 0."""
     from finkensim.cli import main
+    from finkensim.default_scenario import DEFAULT_SCENARIO_TOML
 
-    assert main(["compile", "--workers", "1", "--gap"]) == 0
+    scenario = tmp_path / "small_gap.toml"
+    scenario.write_text(DEFAULT_SCENARIO_TOML + SMALL_GAP_SCENARIO)
+    assert main(["compile", str(scenario), "--workers", "1", "--gap"]) == 0
     out = capsys.readouterr().out
     assert "3 jobs (closed loop, flight log and figures, gap diagnosis)" in out and "kernels compiled in" in out
     assert main(["compile", "--workers", "-1"]) == 2
