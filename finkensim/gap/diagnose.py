@@ -34,7 +34,6 @@ from .limits import range_limits
 from .model import ModelParams
 from .predictive import LRU, ImuTable, RangingTable, SonarTable
 from .replay import GapInputError, prepare_flights
-from .screening import coarse_objective, screens
 from .scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
 from .stats import BlockBootstrap, fdr_significant
 
@@ -411,31 +410,26 @@ class Diagnosis:
                 cands = range(int(prm.lo), int(prm.hi) + 1)
                 scores = [f({**vals, prm.name: c}) for c in cands]
                 return {**vals, prm.name: int(list(cands)[int(np.argmin(scores))])}
-            # coarse grid on a subsample of the training readings (gap/screening.py), refined on all of them
-            coarse = coarse_objective(self, effect, current, sensors)
             grid = np.unique(np.concatenate([np.linspace(prm.lo, prm.hi, 9), [vals[prm.name]]]))
-            scores = np.array([coarse({**vals, prm.name: g}) for g in grid])
+            scores = np.array([f({**vals, prm.name: g}) for g in grid])
             j = int(np.argmin(scores))
             a, b = grid[max(0, j - 1)], grid[min(grid.size - 1, j + 1)]
             if b > a:
                 r = optimize.minimize_scalar(lambda x: f({**vals, prm.name: x}), bounds=(a, b), method="bounded",
                                              options={"xatol": (prm.hi - prm.lo) / 400, "maxiter": 12})
-                best = r.x if r.fun < f({**vals, prm.name: grid[j]}) else grid[j]
+                best = r.x if r.fun < scores[j] else grid[j]
             else:
                 best = grid[j]
             return {**vals, prm.name: float(best)}
-        # several continuous parameters: coarse grid and Nelder–Mead inside the bounds on a subsample of the
-        # training readings, the simplex then polished on all of them
-        coarse = coarse_objective(self, effect, current, sensors)
+        # several continuous parameters: coarse grid, then Nelder–Mead inside the bounds
         axes = [np.linspace(q.lo, q.hi, 5) for q in group]
-        best_x = np.array([vals[q.name] for q in group], float)
-        best_f = coarse(vals)
+        best_x, best_f = np.array([vals[q.name] for q in group], float), None
+        best_f = f(vals)
         for pt in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(group), -1).T:
-            v = coarse({**vals, **{q.name: float(x) for q, x in zip(group, pt)}})
+            v = f({**vals, **{q.name: float(x) for q, x in zip(group, pt)}})
             if v < best_f:
                 best_f, best_x = v, pt
-        return nelder_mead(f, vals, group, best_x, f({**vals, **{q.name: float(x) for q, x in zip(group, best_x)}}),
-                           coarse=coarse if screens(self, sensors) else None)
+        return nelder_mead(f, vals, group, best_x, best_f)
 
     def score_heldout(self, res: FitResult, gap_before_parts=None):
         """Score a fitted effect on the held-out rows (and its gap on the training rows).

@@ -14,52 +14,21 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import optimize
 
-from .screening import coarse_objective, full_objective, screens
 from .stated import stated_floor
 
 if TYPE_CHECKING:
     from .diagnose import Diagnosis
 
 
-#: a simplex stops early once its points lie within this share of each parameter's range of each other and their
-#: objectives within :data:`SIMPLEX_FATOL` (normalised score units; an effect needs 0.003 to be added): further
-#: evaluations would move the fit by less than any decision can see
-SIMPLEX_XATOL = 0.005
-SIMPLEX_FATOL = 1e-5
-
-
-#: with a coarse objective, the simplex on all training readings polishes the coarse one's result with this share
-#: of its evaluations, from a simplex of this share of each parameter's range
-POLISH_SHARE = 3
-POLISH_STEP = 1 / 32
-
-
-def nelder_mead(f, vals, group, x0, f0, maxfev=40, coarse=None):
-    """Nelder–Mead over the parameters ``group`` from x0 (objective f0 there), inside their bounds, in coordinates
-    scaled to each parameter's range (the simplex's moves are the same; it stops early when it stalls,
-    :data:`SIMPLEX_XATOL`, :data:`SIMPLEX_FATOL`), at most ``maxfev`` evaluations. With ``coarse`` (the objective
-    on a subsample of the training readings, :mod:`.screening`) the simplex runs on it and a smaller one
-    (:data:`POLISH_STEP`, ``maxfev`` / :data:`POLISH_SHARE` evaluations) on ``f`` continues from its best point."""
-    lo = np.array([q.lo for q in group], float)
-    hi = np.array([q.hi for q in group], float)
-    width = np.where(hi > lo, hi - lo, 1.0)
-    x0 = np.asarray(x0, float)
-    to_x = lambda u: np.clip(lo + u * width, lo, hi)  # noqa: E731
-
-    def simplex_search(obj, start, step, budget):
-        g = lambda u: obj({**vals, **{q.name: float(c) for q, c in zip(group, to_x(u))}})  # noqa: E731
-        simplex = (_simplex(start, (hi - lo) * step, lo, hi) - lo) / width
-        r = optimize.minimize(g, (start - lo) / width, method="Nelder-Mead",
-                              options={"maxfev": budget, "xatol": SIMPLEX_XATOL, "fatol": SIMPLEX_FATOL,
-                                       "initial_simplex": simplex})
-        return to_x(r.x), r.fun
-
-    if coarse is None:
-        x, fx = simplex_search(f, x0, 1 / 8, maxfev)
-    else:
-        xc, _ = simplex_search(coarse, x0, 1 / 8, maxfev)
-        x, fx = simplex_search(f, xc, POLISH_STEP, max(len(group) + 2, maxfev // POLISH_SHARE))
-    x = x if fx < f0 else x0
+def nelder_mead(f, vals, group, x0, f0, maxfev=40):
+    """Nelder–Mead over the parameters ``group`` from x0 (objective f0 there), inside their bounds."""
+    lo = np.array([q.lo for q in group])
+    hi = np.array([q.hi for q in group])
+    g = lambda x: f({**vals, **{q.name: float(c) for q, c in zip(group, np.clip(x, lo, hi))}})  # noqa: E731
+    r = optimize.minimize(g, np.asarray(x0, float), method="Nelder-Mead",
+                          options={"maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-6,
+                                   "initial_simplex": _simplex(np.asarray(x0, float), (hi - lo) / 8, lo, hi)})
+    x = np.clip(r.x, lo, hi) if r.fun < f0 else np.asarray(x0, float)
     return {**vals, **{q.name: float(c) for q, c in zip(group, x)}}
 
 
@@ -153,7 +122,7 @@ def _fit_dropout(diag: "Diagnosis", effect, current, vals):
 
 def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     """Coordinate search over tracking noise: σ_xy first (yaw at its current value), then σ_yaw; each on a
-    coarse grid (scored on a subsample of the training readings, :mod:`.screening`), then refined on all of them by a bounded scalar search between the best point's grid neighbours; never below the
+    coarse grid, then refined by a bounded scalar search between the best point's grid neighbours; never below the
     noise the logs state (:func:`~finkensim.gap.stated.stated_floor`: a best below it is searched again between the
     stated value and the next grid point)."""
     sensors = [s for s in effect.sensors if s in diag.tables]
@@ -161,19 +130,18 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
     sy0 = current.sigma_yaw if current.sigma_yaw is not None else float(np.mean([f.sigma_yaw for f in diag.flights]))
     v = {"sigma_xy": sx0, "sigma_yaw": sy0}
     floor = stated_floor(diag.flights, effect.name)  # never less noise than a log states
-    f = full_objective(diag, effect, current, sensors)
-    coarse = coarse_objective(diag, effect, current, sensors)  # the grids on a subsample (gap/screening.py)
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
     for name, grid in (("sigma_xy", [0.0, 0.001, 0.002, 0.004, 0.007, 0.012, 0.02, 0.035, 0.05]),
                        ("sigma_yaw", [0.0, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.2])):
         cands = sorted(set(grid) | {v[name]})
-        scores = [coarse({**v, name: c}) for c in cands]
+        scores = [f({**v, name: c}) for c in cands]
         i = int(np.argmin(scores))
         v[name] = float(cands[i])
         lo, hi = cands[max(0, i - 1)], cands[min(len(cands) - 1, i + 1)]
         if hi > lo:
             r = optimize.minimize_scalar(lambda c: f({**v, name: float(c)}), bounds=(lo, hi), method="bounded",
                                          options={"xatol": 0.02 * (hi - lo), "maxiter": 10})
-            if r.fun < f(v):
+            if r.fun < scores[i]:
                 v[name] = float(r.x)
         if v[name] < floor.get(name, 0.0):  # the best lies below the stated noise: search between it and the next point
             lo = floor[name]
@@ -189,7 +157,7 @@ def _fit_pose_noise(diag: "Diagnosis", effect, current, vals):
 
 def _fit_latency(diag: "Diagnosis", effect, current, vals):
     """Per sensor, a search over whole log samples between the bounds (s): every ``stride``-th lag first
-    (about 16 candidates, scored on a subsample of the training readings, :mod:`.screening`), then on all of them a pattern search from the best with steps stride/2, stride/4, … and finally 1
+    (about 16 candidates), then a pattern search from the best with steps stride/2, stride/4, … and finally 1
     until no neighbour improves (the exhaustive ±stride scan it replaced cost 2·stride − 1 evaluations per
     sensor; this takes about 2·log₂ stride + 2). The CRPS uses common random numbers, so it is a deterministic
     function of the lag; the refinement catches a minimum between coarse points."""
@@ -198,19 +166,14 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
     for prm in effect.params:
         if prm.name not in diag.tables:
             continue
-        full = full_objective(diag, effect, current, [prm.name])
-        coarse = coarse_objective(diag, effect, current, [prm.name])
-        f = lambda k: full({**out, prm.name: k * dt})  # noqa: E731
+        f = lambda k: diag._objective(effect, current, [prm.name], {**out, prm.name: k * dt})  # noqa: E731
         lo, hi = math.ceil(prm.lo / dt - 1e-9), math.floor(prm.hi / dt + 1e-9)
         stride = max(1, (hi - lo) // 16)
         start = int(round(out[prm.name] / dt))
-        scores = {k: coarse({**out, prm.name: k * dt})
-                  for k in sorted(set(range(0, hi + 1, stride)) | set(range(0, lo - 1, -stride)) | {start})
+        scores = {k: f(k) for k in sorted(set(range(0, hi + 1, stride)) | set(range(0, lo - 1, -stride)) | {start})
                   if lo <= k <= hi}
         rank = lambda k: (scores[k], abs(k))  # noqa: E731  (ties go to the smaller lag)
         best = min(scores, key=rank)
-        if screens(diag, [prm.name]):  # the pattern search compares scores on all training readings only
-            scores = {best: f(best)}
         step = max(1, stride // 2)
         while True:
             for k in (best - step, best + step):
@@ -229,22 +192,18 @@ def _fit_latency(diag: "Diagnosis", effect, current, vals):
 
 def _fit_bulge(diag: "Diagnosis", effect, current, vals):
     """Amplitude and reach first with the plates following at once (grid, then Nelder–Mead), then a few
-    shapes, then a few response times, each with the others fixed, then all four together from the best (the grids,
-    shapes, responses and simplexes on a subsample of the training readings, :mod:`.screening`, each simplex then
-    polished on all of them)."""
+    shapes, then a few response times, each with the others fixed, then all four together from the best."""
     sensors = [s for s in effect.sensors if s in diag.tables]
     amp, reach, resp, shape = effect.params
     v = diag._fit_group(effect, current, sensors, vals, [amp, reach])
-    f = full_objective(diag, effect, current, sensors)
-    coarse = coarse_objective(diag, effect, current, sensors)  # shapes and responses on a subsample
+    f = lambda vv: diag._objective(effect, current, sensors, vv)  # noqa: E731
     for name, grid in (("shape", (2.0, 4.0, 8.0)), ("response", (0.0, 0.3, 0.8, 1.5))):
         cands = [{**v, name: c} for c in sorted({v[name], *grid})]
-        scores = [coarse(c) for c in cands]
+        scores = [f(c) for c in cands]
         i = int(np.argmin(scores))
         v = cands[i]
     group = [amp, reach, resp, shape]
-    return nelder_mead(f, v, group, [v[q.name] for q in group], f(v), maxfev=60,
-                       coarse=coarse if screens(diag, sensors) else None)
+    return nelder_mead(f, v, group, [v[q.name] for q in group], scores[i], maxfev=60)
 
 
 #: s of each flight's start searched on the full rate grid by :func:`hold_rhythms` (then refined on all of it)

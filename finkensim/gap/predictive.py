@@ -129,10 +129,10 @@ class Table:
     seconds: np.ndarray = None  # time since the flight's start, s
     missing: np.ndarray | None = None  # ranging: (n_all,) bool for the dropout channel
     cache: LRU = field(default_factory=lambda: LRU(16, CACHE_BYTES), repr=False)  # ideal arrays per flight, parameters
-    splits: LRU = field(default_factory=lambda: LRU(16), repr=False)  # rows split by flight, and their masks
+    splits: LRU = field(default_factory=lambda: LRU(8), repr=False)  # rows split by flight
     gathered: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # per-row ideal draws
     normals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # pose draws' normals per flight
-    errors: LRU = field(default_factory=lambda: LRU(8, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
+    errors: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
 
     @property
     def n(self) -> int:
