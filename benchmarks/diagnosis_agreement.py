@@ -34,7 +34,7 @@ def run_sample(cases, seeds, out_path: str, log=print) -> None:
     """Run every (case, seed) and append one JSON line per trial to ``out_path`` (see the module docstring)."""
     import numba
 
-    from finkensim.gap.validate import run_case
+    from finkensim.gap.validation.cases import run_case
 
     numba.set_num_threads(1)
     with warnings.catch_warnings():
@@ -121,7 +121,7 @@ def main(argv=None) -> int:
     if a.cmd == "compare":
         print(compare(a.before, a.after))
         return 0
-    from finkensim.gap.validate import CASES
+    from finkensim.gap.validation.cases import CASES
 
     cases = list(a.cases if a.cases is not None else CASES) + list(a.pairs)
     run_sample(cases, a.seeds, a.out, log=lambda m: print(m, file=sys.stderr, flush=True))
