@@ -108,7 +108,7 @@ def _fit_dropout(diag: "Diagnosis", effect, current, vals):
     z = tab.missing[rows].astype(float)
     x = tab.features["true_range"][rows]
     if z.sum() == 0:
-        return {"a": -12.0, "b": 0.0}
+        return dict(vals)  # nothing missing: the model's own dropout (the start values)
 
     def nll(ab):
         s = ab[0] + ab[1] * x

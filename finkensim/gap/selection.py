@@ -21,7 +21,7 @@ from .correction import fit_correction
 from .diagnose import Diagnosis, FitResult
 from .fits import joint_fit
 from .honesty import check_plausible, flag_bounds, sample_sizes, too_little_data
-from .parsimony import earn_place
+from .parsimony import earn_place, pair_suffices
 from .replay import GapInputError
 from .result import GapDetails, GapReport
 from .shrink import ShrinkMeter
@@ -175,18 +175,6 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         if significantly_better(swap):
             added, current, cur_scores, cur_gaps, cur_score = adopt(swap, "joint swap")
 
-    shrink_sensors = gap_sensors or list(base_scores)
-    if (significant and added and ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated).shrink(
-            cur_scores, cur_gaps) < cfg.unexplained_shrink):
-        pair = _pair_second_chance(diag, added[0], first, evaluated)
-        if significantly_better(pair):
-            added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint pair fit")
-
-    # effects on one sensor trade off (a range scale absorbs part of a bias), so the greedy step can miss a second
-    # effect that its conditional fit (on top of the first) shows only weakly: a lone effect is also fitted jointly
-    # with its two leading same-sensor alternatives (the last round's ranking), and the pair is kept when it clears
-    # the bar of a further effect (sound_speed + sonar_bias, seed 9 of the random conventions: the bias fitted on top
-    # of the factor improved the held-out score by 0.0015, jointly by 0.0075, p = 1e-73, with both near the truth)
     def second_matters(chain, n_candidates) -> bool:
         """The second effect of a joint fit clears a further effect's bar against the first effect of the same fit
         alone (so a better optimum of the first, which the joint search also finds, does not let a second in: a
@@ -196,6 +184,28 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
         imp, _, imp_p = improvement(alone.rows_score, chain[-1].rows_score)
         return bool(imp >= further_bar(alone.score_heldout) and np.isfinite(imp_p) and imp_p < cfg.alpha / max(1, n_candidates))
 
+    shrink_sensors = gap_sensors or list(base_scores)
+
+    def explains(rows_score, rows_gap) -> bool:  # the verdict's test: enough shrink, or a remainder not told from 0
+        return ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated).shrink(rows_score, rows_gap) >= (
+            cfg.unexplained_shrink) or not any(r["significant"] for r in _sensor_gaps(
+                diag, rows_gap, rows_ho, gap_sensors, len(gap_vals), cfg, remainder=True).values())
+    # the first effect jointly with each candidate on its sensors when the gap is left unexplained, and when more than
+    # two effects were named: those beyond a pair must beat the best pair (gap/parsimony.py, pair_suffices)
+    if significant and added and (len(added) > 2 or ShrinkMeter(base_scores, gap_vals, shrink_sensors, evaluated).shrink(
+            cur_scores, cur_gaps) < cfg.unexplained_shrink):
+        pair = _pair_second_chance(diag, added[0], first, evaluated)
+        if significantly_better(pair) or (len(added) > 2 and pair_suffices(
+                pair, cur_scores, improvement, further_bar, len(first), cfg.alpha,
+                lambda r: explains(r.rows_score, r.rows_gap) or not explains(cur_scores, cur_gaps))
+                and second_matters(pair, len(first))):
+            added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint pair fit")
+
+    # effects on one sensor trade off (a range scale absorbs part of a bias), so the greedy step can miss a second
+    # effect that its conditional fit (on top of the first) shows only weakly: a lone effect is also fitted jointly
+    # with its two leading same-sensor alternatives (the last round's ranking), and the pair is kept when it clears
+    # the bar of a further effect (sound_speed + sonar_bias, seed 9 of the random conventions: the bias fitted on top
+    # of the factor improved the held-out score by 0.0015, jointly by 0.0075, p = 1e-73, with both near the truth)
     if significant and len(added) == 1:
         pair = _join_second(diag, added[0], pool, evaluated)
         if pair is not None and pair[-1].score_heldout < cur_score and second_matters(pair, len(pool)):
@@ -213,10 +223,12 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
                     and second_matters(pair, len(first))):
                 added, current, cur_scores, cur_gaps, cur_score = adopt(pair, "joint lead pair")
 
-    # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/parsimony.py)
+    # a catch-all beside a structured effect stays only against a more flexible fit of that effect (gap/parsimony.py),
+    # or when the selection, which explains the gap, would not without it
     earned = earn_place(diag, added, improvement, further_bar, max(1, len(first) - 1), evaluated, lambda a, b: max(
         _share(a.rows_gap, b.rows_gap, gap_sensors, per_sensor), _share(a.rows_score, b.rows_score, gap_sensors,
-                                                                          per_sensor))) if (
+                                                                          per_sensor)),
+        explains=(lambda r: explains(r.rows_score, r.rows_gap)) if explains(cur_scores, cur_gaps) else None) if (
         significant and len(added) > 1) else None
     if earned is not None:
         steps += [(label, n, rs, rg, _clean_nested(v)) for label, n, rs, rg, v in earned.steps]
@@ -415,7 +427,7 @@ def _joint_refit(diag, added):
 
 
 def _pair_second_chance(diag, first_added, first, evaluated):
-    """When the greedy selection leaves the gap unexplained: the first selected effect fitted jointly
+    """When the greedy selection leaves the gap unexplained or names more than two effects: the first selected effect fitted jointly
     (:func:`~finkensim.gap.fits.joint_fit`) with each other first-round candidate on one of its sensors; returns
     the best pair's chain of FitResults (scored on the held-out flights), or None. Each pair's held-out rows are
     appended to ``evaluated``."""
@@ -425,7 +437,7 @@ def _pair_second_chance(diag, first_added, first, evaluated):
     others = [r for r in first if r.name != a.name and set(fx.REGISTRY[r.name].sensors) & set(a.sensors)]
     if not others:
         return None
-    diag.say(f"  unexplained so far: fitting {a.name} jointly with {', '.join(r.name for r in others)}")
+    diag.say(f"  unexplained so far or more than two effects: fitting {a.name} jointly with {', '.join(r.name for r in others)}")
     return _best_joint_pair(diag, first_added, others, evaluated)
 
 
