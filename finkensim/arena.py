@@ -95,6 +95,7 @@ class HingeParams(NamedTuple):
     bulge_shape: float = 2.0
     bulge_response: float = 0.0  # s
     bulge_cutoff: float = 0.0  # m, beyond it the bulge target is 0 in float64 (0 without a bulge)
+    bulge_hinge: float = 0.0  # the hinge law's weight in the bulge's target, [0, 1] (walls.bulge_hinge)
 
 
 @njit(cache=True, inline="always")
@@ -266,12 +267,42 @@ def bulge_cutoff(reach: float, shape: float) -> float:
     return float(reach * (300.0 * np.log(10.0)) ** (1.0 / shape))
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def bulge_target(d, amplitude, reach, shape):
-    """The curtain bulge's target displacement (m, toward the arena) of a plate d m from the nearest copter body:
-    ``amplitude · exp(−(d/reach)^shape)`` (shape 2 a Gaussian; larger a flat bulge that ends sharply near reach).
-    The law of the gap effect ``wall_bulge`` (:func:`finkensim.gap.model.bulge.bulge_displacement`)."""
-    return amplitude * np.exp(-(d / reach) ** shape)
+def bulge_law(d, amplitude, reach, shape, hinge):
+    """The curtain bulge's target displacement (m, toward the arena) of plates d m from the nearest copter body:
+    ``amplitude · ((1 − hinge)·exp(−(d/reach)^shape) + hinge·f(x)/f(1))``, x = clip(1 − d/reach, 0, 1) and f the
+    walls' own polynomial amplitude law (:func:`amplitude_law`; 0 beyond ``reach``, which plays the hinge's threshold).
+    shape 2 is a Gaussian, larger a flat bulge that ends sharply near reach; hinge 0 the exponential law alone.
+
+    The one law of the simulator's bulge (compiled as :func:`bulge_target`, d a float) and of the gap effect
+    ``wall_bulge`` and its flexible refit (:func:`finkensim.gap.model.bulge.bulge_target`, d an array).
+
+    Parameters
+    ----------
+    d : float or numpy.ndarray
+        m, each plate's distance to the nearest copter body.
+    amplitude : float
+        m, the displacement at d = 0.
+    reach : float
+        m > 0, the distance scale.
+    shape : float
+        > 0, the exponent of the exponential law.
+    hinge : float
+        In [0, 1], the weight of the hinge law.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        m, the target displacement, shaped like ``d``.
+    """
+    target = amplitude * np.exp(-(d / reach) ** shape)
+    if hinge == 0.0:
+        return target
+    x = np.minimum(np.maximum(1.0 - d / reach, 0.0), 1.0)
+    return (1.0 - hinge) * target + hinge * amplitude * _amplitude_law(x) / _amplitude_law(1.0)
+
+
+#: :func:`bulge_law` compiled for one plate (d a float; numba kernels inline it)
+bulge_target = njit(cache=True, inline="always", error_model="numpy")(bulge_law)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -287,7 +318,7 @@ def bulge_step_env(bulge, dist, hp, dt, first):
     :func:`bulge_alpha` (the curtain keeps bending after the copter passed). ``hp``: a :class:`HingeParams`."""
     alpha = 1.0 if first else bulge_alpha(dt, hp.bulge_response)
     for s in range(bulge.shape[0]):
-        target = bulge_target(dist[s], hp.bulge_amplitude, hp.bulge_reach, hp.bulge_shape)
+        target = bulge_target(dist[s], hp.bulge_amplitude, hp.bulge_reach, hp.bulge_shape, hp.bulge_hinge)
         bulge[s] = target if first else bulge[s] + alpha * (target - bulge[s])
 
 
@@ -387,6 +418,7 @@ class Arena:
             bulge_shape=walls.bulge_shape,
             bulge_response=walls.bulge_response,
             bulge_cutoff=bulge_cutoff(walls.bulge_reach, walls.bulge_shape) if bulge else 0.0,
+            bulge_hinge=walls.bulge_hinge,
         )
         arr = lambda v: np.ascontiguousarray(np.array(v, dtype=float))  # noqa: E731
         return cls(

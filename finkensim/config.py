@@ -67,6 +67,7 @@ class WallConfig(_Section):
                             "near bulge_reach")
     bulge_response: float = _f(0.0, "s", 0.0, 10.0, doc="curtain bulge: first-order time constant of the plates "
                                "following it (0: at once)")
+    bulge_hinge: float = _f(0.0, "", 0.0, 1.0, doc="curtain bulge: weight of the hinge's amplitude law f(1 - d/bulge_reach)/f(1) blended into its target (0: the exponential law alone)")
 
     def _check(self):
         if self.plate_length > self.hinge_height:

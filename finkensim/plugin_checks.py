@@ -262,7 +262,7 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     """Check an effect of the gap diagnosis against its contract (:class:`~finkensim.gap.attribute.effects.Effect`).
 
     Checked: a name, known sensors and parameters with finite bounds lo < hi; the starting values lie within the
-    bounds (or at the neutral 0); at the starting values the model is the base model (neutral parameters change
+    bounds (or at the neutral 0, or None where the base model leaves the quantity to the logs); at the starting values the model is the base model (neutral parameters change
     nothing); at the bounds and inside them ``apply`` returns a :class:`~finkensim.gap.model.params.ModelParams`, changes no
     sensor the effect does not name, leaves the base model as it was and gives the same model twice (pure); with a
     ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor; an own
@@ -301,8 +301,10 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     start = effect.start(base)
     for prm in effect.params:
         v = start.get(prm.name)
-        if v is None or not (prm.lo <= v <= prm.hi or v == 0.0):
-            _fail(name, f"start value of {prm.name!r} is {v!r}: expected a value in [{prm.lo}, {prm.hi}] (or 0)")
+        # None: the base model leaves the quantity to the logs (pose_noise: each flight's stated tracking noise)
+        if v is not None and not (prm.lo <= v <= prm.hi or v == 0.0):
+            _fail(name, f"start value of {prm.name!r} is {v!r}: expected a value in [{prm.lo}, {prm.hi}] (or 0, "
+                        "or None where the base model leaves it to the logs)")
     neutral = _keys(effect.apply(base, start))
     for sensor in EFFECT_SENSORS:
         if neutral[sensor] != before[sensor]:

@@ -17,18 +17,20 @@ HP = HingeParams(False, 1.0, 0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1)
 
 @settings(max_examples=60, deadline=None)
 @given(amplitude=st.floats(-0.1, 0.5), reach=st.floats(0.05, 1.5), response=st.floats(0.0, 3.0),
-       shape=st.floats(1.0, 12.0), T=st.integers(1, 30), seed=st.integers(0, 2**31))
-def test_bulge_kernel_matches_the_diagnosis_law(amplitude, reach, response, shape, T, seed):
+       shape=st.floats(1.0, 12.0), T=st.integers(1, 30), seed=st.integers(0, 2**31),
+       hinge=st.one_of(st.just(0.0), st.just(1.0), st.floats(0.0, 1.0)))
+def test_bulge_kernel_matches_the_diagnosis_law(amplitude, reach, response, shape, T, seed, hinge):
+    """One law (arena.bulge_law): the world's compiled step and the diagnosis's NumPy displacement, any hinge weight."""
     d = np.random.default_rng(seed).uniform(0.0, 2.0, size=(T, 5))
     dt = 0.02
     hp = HP._replace(bulge_amplitude=amplitude, bulge_reach=reach, bulge_shape=shape, bulge_response=response,
-                     bulge_cutoff=bulge_cutoff(reach, shape))
+                     bulge_cutoff=bulge_cutoff(reach, shape), bulge_hinge=hinge)
     x = np.zeros(5)
     got = np.empty((T, 5))
     for k in range(T):
         bulge_step_env(x, d[k], hp, dt, k == 0)
         got[k] = x
-    want = bulge_displacement(d, amplitude, reach, response, np.arange(T) * dt, shape)
+    want = bulge_displacement(d, amplitude, reach, response, np.arange(T) * dt, shape, hinge)
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
 
 
@@ -38,7 +40,8 @@ def test_cutoff_bounds_the_target():
 
 
 @pytest.mark.parametrize("key,bad", [("walls.model", "bulgy"), ("walls.bulge_reach", 0.0),
-                                     ("walls.bulge_amplitude", 2.0), ("walls.bulge_response", -1.0)])
+                                     ("walls.bulge_amplitude", 2.0), ("walls.bulge_response", -1.0),
+                                     ("walls.bulge_hinge", 1.5), ("walls.bulge_hinge", -0.1)])
 def test_bad_bulge_keys_are_named_errors(key, bad):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
         load_config().replace({key: bad})
@@ -57,7 +60,7 @@ def test_wall_bulge_calibrates_the_wall_model(bending):
 
 SMALL = {"copters.n": 4, "behaviour.kind": "random_walk", "simulation.dt": 0.02, "arena.width": 1.5,
          "arena.length": 1.5, "walls.model": "bulge", "walls.bulge_amplitude": 0.2, "walls.bulge_reach": 0.3,
-         "walls.bulge_response": 0.2}
+         "walls.bulge_response": 0.2, "walls.bulge_hinge": 0.5}
 
 
 @pytest.fixture(scope="module")
@@ -81,6 +84,7 @@ def test_the_world_follows_the_bulge_law(bulged):
     sim, final, rec, _, _ = bulged
     geo, hp, r = sim.world.geometry, sim.world.hinge_params, sim.world.copter_params.radius
     assert not hp.bending and (rec.theta == 0).all()  # "bulge" alone: the hinge does not move
+    assert hp.bulge_hinge == 0.5  # walls.bulge_hinge flown: the hinge law blended into the bulge's target
     pos = np.concatenate([rec.pose[..., :2], final.world.pos[None]], axis=0)
     T, B = pos.shape[:2]
     for b in range(B):
@@ -88,7 +92,7 @@ def test_the_world_follows_the_bulge_law(bulged):
         for k in range(T):
             nearest_body_distance_env(geo.seg_a, geo.seg_b, np.ascontiguousarray(pos[k, b]), r, d[k])
         want = bulge_displacement(d, hp.bulge_amplitude, hp.bulge_reach, hp.bulge_response, np.arange(T) * 0.02,
-                                  hp.bulge_shape)
+                                  hp.bulge_shape, hp.bulge_hinge)
         np.testing.assert_allclose(final.world.bulge[b], want[-1], rtol=1e-9, atol=1e-12)
 
 

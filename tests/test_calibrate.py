@@ -170,12 +170,13 @@ def test_calibrated_table_counts_trials_without_a_gap():
     assert "| foreign | 1 | 0 % |" in md and "| 40 % | 1/1 |" in md and "other" not in md
 
 
-def test_a_bulge_refitted_with_the_hinge_law_is_not_flown_as_if_it_were_the_catalogue_law():
-    """The parsimony step may fit wall_bulge with a hinge-law weight the simulator's bulge cannot fly yet: the
-    calibration must say so (flown=False) instead of flying the catalogue law silently."""
+def test_a_bulge_refitted_with_the_hinge_law_is_flown_with_its_hinge_weight():
+    """The parsimony step may fit wall_bulge with a hinge-law weight (gap/parsimony.py): the calibrated config flies
+    it (walls.bulge_hinge), the model it gives is the flexible refit's, and the written file runs."""
     from types import SimpleNamespace
 
-    from finkensim.gap.quantify.calibrate import calibration
+    from finkensim.gap.quantify.calibrate import calibrated_config, calibration
+    from finkensim.gap.attribute.parsimony import flexible_version
 
     bulge = {"amplitude": 0.1, "reach": 0.4, "response": 0.0, "shape": 2.0}
 
@@ -183,6 +184,11 @@ def test_a_bulge_refitted_with_the_hinge_law_is_not_flown_as_if_it_were_the_cata
         details = SimpleNamespace(config=load_config(), added_params={"wall_bulge": values}, param_intervals={})
         return SimpleNamespace(details=details, effects=[{"name": "wall_bulge", "shrink_heldout": 0.5}])
 
-    assert [s.flown for s in calibration(report(bulge))] == [True]
-    assert [s.flown for s in calibration(report({**bulge, "hinge": 0.0}))] == [True]
-    assert [s.flown for s in calibration(report({**bulge, "hinge": 0.4}))] == [False]
+    for hinge in (None, 0.0, 0.4):
+        values = bulge if hinge is None else {**bulge, "hinge": hinge}
+        assert [s.flown for s in calibration(report(values))] == [True]
+        cfg = calibrated_config(report(values))
+        assert cfg.walls.bulge_hinge == (hinge or 0.0)
+        if hinge is not None:
+            want = flexible_version("wall_bulge").apply(ModelParams.from_config(load_config()), values)
+            assert ModelParams.from_config(cfg).sensor_key("ultrasonic") == want.sensor_key("ultrasonic")

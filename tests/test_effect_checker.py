@@ -11,24 +11,8 @@ import finkensim.gap  # noqa: F401  (registers the whole catalogue, radio effect
 from finkensim.gap.attribute import effects as fx
 from finkensim.testing import PluginError, check_effect
 
-#: catalogued effects whose start values are not exactly the base model (found by check_effect, to be fixed in the
-#: catalogue: each changes what a fit starts from, so each needs the validation matrices rerun)
-NOT_NEUTRAL = {
-    # probability 0 is no cross-talk, but it switches the record's cross-talk mode, so the model differs in form
-    "crosstalk_constant": "start switches the cross-talk mode at probability 0",
-    # the dropout's lower bound a = -12 loses sigmoid(-12) = 6e-6 of the readings; the base loses none (a = -100)
-    "ranging_dropout": "start a = -12 is not the base model's a = -100",
-    # the base model has no tracking noise (None); the start is 0.0: the same noise in a different form
-    "pose_noise": "start sigma 0.0 vs the base model's None",
-}
-
-
 @pytest.mark.parametrize("name", sorted(fx.REGISTRY))
 def test_every_catalogued_effect_passes_its_checker(name):
-    if name in NOT_NEUTRAL:
-        with pytest.raises(PluginError, match="start values"):
-            check_effect(fx.REGISTRY[name])
-        pytest.xfail(NOT_NEUTRAL[name])
     check_effect(fx.REGISTRY[name])
 
 

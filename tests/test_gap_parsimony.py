@@ -113,3 +113,76 @@ def test_a_log_stating_its_tracking_noise_never_gets_a_pose_noise_within_it():
     bias = REGISTRY["sonar_bias"]
     _, vp = joint_fit(diag, [bias, pose], [{"bias": 0.0}, {"sigma_xy": 0.0, "sigma_yaw": 0.0}])
     assert vp["sigma_xy"] >= 0.02 and vp["sigma_yaw"] >= 0.05
+
+
+# --- the parsimony step's rules, on a stub diagnosis (no flights: the rules, not the fits) -------------------------
+
+def _stub_diag():
+    """A diagnosis stand-in: the configured model of the default scenario, a quadratic training objective around a
+    bulge of 0.1 m, and held-out rows that are the same for every model (the tests set the verdicts by hand)."""
+    from finkensim.config import load_config
+    from finkensim.gap.model.params import ModelParams
+
+    def objective(effect, current, sensors, v):
+        return float((v.get("amplitude", 0.0) - 0.1) ** 2 + v.get("hinge", 0.0) ** 2)
+
+    def score_heldout(res):
+        res.rows_score, res.rows_gap, res.score_heldout = {"ultrasonic": np.ones(4)}, {"ultrasonic": np.ones(4)}, 1.0
+        return res
+
+    cfg = load_config()
+    return SimpleNamespace(cfg=cfg, base=ModelParams.from_config(cfg), tables={"ultrasonic": None},
+                           _objective=objective, score_heldout=score_heldout, say=lambda *a: None)
+
+
+def _selection(diag):
+    from finkensim.gap.diagnosis import FitResult
+
+    bulge = {"amplitude": 0.1, "reach": 0.4, "response": 0.0, "shape": 2.0}
+    return [FitResult("wall_bulge", bulge, diag.base, math.nan),
+            FitResult("crosstalk_constant", {"probability": 0.02}, diag.base, math.nan)]
+
+
+def _earn(explains):
+    from finkensim.gap.attribute.parsimony import earn_place
+
+    diag = _stub_diag()
+    insignificant = lambda cur, new: (1e-5, (-1e-4, 1e-4), 0.4)  # noqa: E731
+    return earn_place(diag, _selection(diag), insignificant, lambda score: 0.01, 10, [], lambda a, b: 0.0,
+                      explains=explains)
+
+
+def test_an_insignificant_catch_all_goes_when_the_rest_still_explains_the_gap():
+    earned = _earn(lambda r: True)
+    assert [r.name for r in earned.added] == ["wall_bulge"]
+    assert earned.tried[0]["kept"] is False and earned.tried[0]["needed_to_explain"] is False
+    assert [r.name for r in _earn(None).added] == ["wall_bulge"]  # a selection that did not explain the gap
+
+
+def test_dropping_a_catch_all_never_turns_an_explained_verdict_unexplained():
+    """wall_bulge seed 106 of the random conventions: an insignificant constant cross-talk beside the bulge was
+    dropped and the verdict turned unexplained. Without the catch-all the gap would be left unexplained: it stays."""
+    earned = _earn(lambda r: False)
+    assert earned.added is None  # the selection stands
+    assert earned.tried[0]["kept"] is True and earned.tried[0]["needed_to_explain"] is True
+
+
+def test_effects_beyond_a_pair_must_beat_the_best_pair():
+    """wall_bulge+sonar_bias seed 3: the greedy path named a bulge and three sonar effects; the joint pair of the
+    bulge and the bias describes the held-out data as well, so the pair replaces them (pair_suffices)."""
+    from finkensim.gap.diagnosis import FitResult
+    from finkensim.gap.attribute.parsimony import pair_suffices
+
+    pair = [FitResult("wall_bulge", {}, None, math.nan), FitResult("sonar_bias", {}, None, math.nan)]
+    pair[-1].rows_score, pair[-1].score_heldout = {"ultrasonic": np.ones(3)}, 0.5
+    rows = {"ultrasonic": np.ones(3)}
+
+    def test(imp, p):
+        return lambda cur, new: (imp, (imp, imp), p)
+
+    bar = lambda score: 0.01  # noqa: E731
+    assert pair_suffices(pair, rows, test(0.002, 1e-6), bar, 10, 0.05, lambda r: True)  # under the bar
+    assert pair_suffices(pair, rows, test(0.05, 0.02), bar, 10, 0.05, lambda r: True)  # not significant
+    assert not pair_suffices(pair, rows, test(0.05, 1e-6), bar, 10, 0.05, lambda r: True)  # the selection beats it
+    assert not pair_suffices(pair, rows, test(0.002, 1e-6), bar, 10, 0.05, lambda r: False)  # leaves the gap
+    assert not pair_suffices(None, rows, test(0.0, 1.0), bar, 10, 0.05, lambda r: True)

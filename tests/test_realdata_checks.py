@@ -136,7 +136,10 @@ def test_parameters_at_a_bound_are_flagged_but_not_a_neutral_bound():
     nlos = fx.REGISTRY["ranging_nlos"]
     assert fx.at_bound(nlos, {"bias": 1.0, "width": 0.35}, base) == ["bias", "width"]
     assert fx.at_bound(nlos, {"bias": 0.3, "width": 0.2}, base) == []
-    assert fx.at_bound(fx.REGISTRY["ranging_dropout"], {"a": -12.0, "b": 0.0}, base) == []  # -12 = no dropout
+    assert fx.at_bound(fx.REGISTRY["ranging_dropout"], {"a": -100.0, "b": 0.0}, base) == []  # -100 = no dropout
+    # a start of None (pose noise: each log's stated value) is no neutral bound
+    pose = fx.REGISTRY["pose_noise"]
+    assert fx.at_bound(pose, {"sigma_xy": 0.05, "sigma_yaw": 0.1}, base) == ["sigma_xy"]
 
 
 def test_too_little_data_says_what_cannot_be_decided():

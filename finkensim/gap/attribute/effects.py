@@ -149,7 +149,8 @@ def at_bound(effect: Effect, values: dict, base: ModelParams) -> list[str]:
             continue
         tol = AT_BOUND_SHARE * (prm.hi - prm.lo)
         for bound in (prm.lo, prm.hi):
-            if abs(float(v) - bound) <= tol and abs(float(neutral.get(prm.name, math.nan)) - bound) > tol:
+            n = neutral.get(prm.name)
+            if abs(float(v) - bound) <= tol and not abs(float(math.nan if n is None else n) - bound) <= tol:
                 out.append(prm.name)
                 break
     return out
@@ -190,6 +191,8 @@ def _cal_crosstalk(kind: str, probability_key: str):
     configured schedule fires every copter at once, as the effect assumes)."""
     def cal(v: dict, cfg: Config) -> dict:
         now = cfg.sonar.crosstalk
+        if kind == "constant" and v["probability"] == 0.0 and kind not in now.split("+"):
+            return {}  # probability 0 is no cross-talk: nothing to switch on (_crosstalk_constant)
         out = {probability_key: v["probability"]}
         if kind not in now.split("+"):
             out["sonar.crosstalk"] = kind if now == "off" else "geometric+constant"
@@ -213,6 +216,8 @@ def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
 
 
 def _crosstalk_constant(base: ModelParams, v: dict) -> ModelParams:
+    if v["probability"] == 0.0 and not base.sonar.crosstalk & CROSSTALK_CONSTANT:
+        return base  # probability 0 is no cross-talk: the base model as it is, its cross-talk mode unchanged
     return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_CONSTANT, crosstalk_probability=v["probability"])
 
 
@@ -246,6 +251,8 @@ register(Effect(
     calibrate=lambda v, cfg: {
         "walls.bending": True, "walls.bulge_amplitude": float(v["amplitude"]), "walls.bulge_reach": float(v["reach"]),
         "walls.bulge_response": float(v["response"]), "walls.bulge_shape": float(v["shape"]),
+        # the hinge-law weight of the flexible refit (gap/attribute/parsimony.py); the catalogue's fit keeps the config's
+        "walls.bulge_hinge": float(v.get("hinge", cfg.walls.bulge_hinge)),
         # the hinge stays as the config flew it (rigid walls: the bulge alone)
         "walls.model": "hinge+bulge" if cfg.walls.bending and "hinge" in cfg.walls.model else "bulge"}))
 register(Effect(
@@ -335,18 +342,22 @@ register(Effect(
     calibrate=lambda v, cfg: {"ranging.nlos_bias": v["bias"], "ranging.nlos_width": v["width"]},
     expected_features=("los_clearance", "neighbor_distance")))
 register(Effect(
-    "ranging_dropout", ("ranging",), (Param("a", -12.0, 8.0), Param("b", -6.0, 6.0, unit="1/m")),
+    # a = -100 is the config's "never" (sigmoid(-100) ~ 4e-44): the range includes the base model's value
+    "ranging_dropout", ("ranging",), (Param("a", -100.0, 8.0), Param("b", -6.0, 6.0, unit="1/m")),
     lambda b, v: b.with_ranging(dropout_a=v["a"], dropout_b=v["b"]),
     calibrate=lambda v, cfg: {"ranging.dropout_a": v["a"], "ranging.dropout_b": v["b"]},
     fit=fits.fit_dropout,
     doc="readings go missing with probability sigmoid(a + b·distance)",
-    initial=lambda b: {"a": -12.0, "b": 0.0}, expected_features=("true_range",)))
+    initial=lambda b: {"a": b.ranging.radio["dropout_a"], "b": b.ranging.radio["dropout_b"]},
+    expected_features=("true_range",)))
 register(Effect(
     "pose_noise", ("ultrasonic", "ranging", "imu"),
     (Param("sigma_xy", 0.0, 0.05, unit="m"), Param("sigma_yaw", 0.0, 0.2, unit="rad")),
     lambda b, v: b.with_(sigma_xy=v["sigma_xy"], sigma_yaw=v["sigma_yaw"]),
     fit=fits.fit_pose_noise,
     doc="tracking noise in the logged poses", catch_all=True,
+    # None: each flight's stated noise, as the base model (a fitted σ is one value for every flight)
+    initial=lambda b: {"sigma_xy": b.sigma_xy, "sigma_yaw": b.sigma_yaw},
     # the flight-log writer records simulated poses with it, and a diagnosis of new logs under the calibrated config
     # takes it instead of the logs' declared noise
     calibrate=lambda v, cfg: {"log.tracking_sigma_xy": v["sigma_xy"], "log.tracking_sigma_yaw": v["sigma_yaw"],

@@ -106,7 +106,7 @@ def fit_dropout(diag: FitObjective, effect, current, vals):
     z = tab.missing[rows].astype(float)
     x = tab.features["true_range"][rows]
     if z.sum() == 0:
-        return {"a": -12.0, "b": 0.0}
+        return dict(vals)  # nothing missing: the model's own dropout (the start values)
 
     def nll(ab):
         s = ab[0] + ab[1] * x

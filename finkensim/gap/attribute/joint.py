@@ -12,6 +12,7 @@ from . import effects as fx
 from ..diagnosis import FitResult
 from ..quantify.shrink import ShrinkMeter
 from .fits import joint_fit
+from .parsimony import pair_suffices
 from .selection import Selection, clean_values
 
 __all__ = ["refit_jointly", "swap_second", "pair_when_unexplained", "join_second", "pair_lead"]
@@ -42,15 +43,19 @@ def swap_second(sel: Selection) -> None:
 
 
 def pair_when_unexplained(sel: Selection) -> None:
-    """The selection explains too little of the gap: its first effect fitted jointly with each candidate on its
-    sensors."""
+    """The selection explains too little of the gap, or names more than two effects: its first effect fitted jointly
+    with each candidate on its sensors. Effects beyond a pair must beat the best pair
+    (:func:`~.parsimony.pair_suffices`)."""
     found = sel.found
     shrink_sensors = found.gap_sensors or list(found.base_scores)
-    if (found.significant and sel.added and ShrinkMeter(found.base_scores, found.gap_vals, shrink_sensors,
-                                                        sel.evaluated).shrink(sel.cur_scores, sel.cur_gaps)
-            < sel.diag.cfg.gap.unexplained_shrink):
+    if (found.significant and sel.added and (len(sel.added) > 2 or ShrinkMeter(
+            found.base_scores, found.gap_vals, shrink_sensors, sel.evaluated).shrink(sel.cur_scores, sel.cur_gaps)
+            < sel.diag.cfg.gap.unexplained_shrink)):
         pair = _pair_second_chance(sel.diag, sel.added[0], sel.first, sel.evaluated)
-        if sel.significantly_better(pair):
+        if sel.significantly_better(pair) or (len(sel.added) > 2 and pair_suffices(
+                pair, sel.cur_scores, sel.improvement, sel.further_bar, len(sel.first), sel.diag.cfg.gap.alpha,
+                lambda r: sel.explains(r.rows_score, r.rows_gap) or not sel.explains(sel.cur_scores, sel.cur_gaps))
+                and sel.second_matters(pair, len(sel.first))):
             sel.adopt(pair, "joint pair fit")
 
 
@@ -113,7 +118,7 @@ def _joint_refit(diag, added):
 
 
 def _pair_second_chance(diag, first_added, first, evaluated):
-    """When the greedy selection leaves the gap unexplained: the first selected effect fitted jointly
+    """When the greedy selection leaves the gap unexplained or names more than two effects: the first selected effect fitted jointly
     (:func:`~finkensim.gap.attribute.fits.joint_fit`) with each other first-round candidate on one of its sensors; returns
     the best pair's chain of FitResults (scored on the held-out flights), or None. Each pair's held-out rows are
     appended to ``evaluated``."""
@@ -123,7 +128,7 @@ def _pair_second_chance(diag, first_added, first, evaluated):
     others = [r for r in first if r.name != a.name and set(fx.REGISTRY[r.name].sensors) & set(a.sensors)]
     if not others:
         return None
-    diag.say(f"  unexplained so far: fitting {a.name} jointly with {', '.join(r.name for r in others)}")
+    diag.say(f"  unexplained so far or more than two effects: fitting {a.name} jointly with {', '.join(r.name for r in others)}")
     return _best_joint_pair(diag, first_added, others, evaluated)
 
 

@@ -9,7 +9,9 @@ added first), refits the structured effect with a more flexible version of itsel
 :func:`~finkensim.gap.model.bulge.bulge_target`), and keeps the catch-all only when the selection with it still beats that
 model by the bar of a further effect, the structured effect refitted flexibly with the catch-all in place too (the selection's rule: an improvement of the held-out score of at least
 ``gap.accept_improvement`` in units of the typical error of the model without it, with a p-value under ``gap.alpha``
-/ the number of candidates). The catch-all keeps its fitted value and the bulge is refitted around it (a catch-all
+/ the number of candidates), or when the selection without it would leave the gap unexplained (the step prunes
+an explanation, it never undoes one: an insignificant constant cross-talk beside a bulge once went, and the verdict
+turned unexplained). The catch-all keeps its fitted value and the bulge is refitted around it (a catch-all
 refitted alone on top of a bulge can stop partway along the valley the two share, which a joint fit reached). Every refit is a "tried" line of the waterfall and of
 ``verdict.tried``.
 """
@@ -24,7 +26,7 @@ from . import effects as fx
 from ..diagnosis import FitResult
 from .fits import nelder_mead
 
-__all__ = ["flexible_version", "earn_place", "Earned"]
+__all__ = ["flexible_version", "earn_place", "Earned", "pair_suffices"]
 
 #: hinge-law weight, reach factor: the starting points of the flexible bulge's search (the polynomial law ends at its
 #: threshold, so a bulge that law describes needs a longer reach than the Gaussian fitted to it)
@@ -98,7 +100,7 @@ def _shares_sensor(a: str, b: str) -> bool:
 
 
 def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluated: list,
-               gain=None) -> Earned | None:
+               gain=None, explains=None) -> Earned | None:
     """Does each catch-all of the selection ``added`` earn its place beside a structured effect refitted flexibly?
 
     Parameters
@@ -119,6 +121,10 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
         ``gain(old, new) -> float``: the share of a gap sensor's configured-model gap that going from FitResult
         ``old`` to ``new`` removes; a catch-all removing at least ``gap.accept_gain`` is material and stays on a
         significant improvement (the selection's first rule).
+    explains : callable, optional
+        ``explains(result) -> bool``: whether the model of a FitResult (its held-out rows) explains the gap as the
+        verdict measures it; given when the selection explains it. A catch-all whose removal would leave the gap
+        unexplained stays whatever its test says (dropping a catch-all never turns an explained verdict unexplained).
 
     Returns
     -------
@@ -143,16 +149,19 @@ def earn_place(diag, added, improvement, further_bar, n_candidates: int, evaluat
         bar = further_bar(reduced.score_heldout)
         share = gain(reduced, cur) if gain is not None else 0.0
         # the selection's rule: significant, and material (a share of the gap) or beyond a further effect's bar
-        stays = bool(np.isfinite(pv) and pv < cfg.alpha and imp > 0 and (
+        earned = bool(np.isfinite(pv) and pv < cfg.alpha and imp > 0 and (
             share >= cfg.accept_gain or (imp >= bar and pv < threshold)))
+        # without it the gap would be left unexplained: the parsimony step prunes an explanation, never undoes one
+        needed = bool(not earned and explains is not None and not explains(reduced))
+        stays = earned or needed
         beside = ", ".join(f"{r.name} (flexible)" if r.name in flexible else r.name for r in others)
         out.tried.append({"effect": c.name, "beside": beside, "improvement": float(imp), "bar": float(bar),
                           "gap_share": float(share),
-                          "p": float(pv), "threshold": threshold, "kept": stays})
+                          "p": float(pv), "threshold": threshold, "kept": stays, "needed_to_explain": needed})
         out.steps.append((f"tried: {beside} without {c.name} ({c.name} {'kept' if stays else 'dropped'})", None,
                           reduced.rows_score, reduced.rows_gap, {r.name: dict(r.values) for r in chain}))
         diag.say(f"  {c.name} against {beside}: improvement {imp:.4f} (bar {bar:.4f}), p = {pv:.3g}: "
-                 f"{'kept' if stays else 'dropped'}")
+                 f"{'kept' if stays else 'dropped'}{' (without it the gap is unexplained)' if needed else ''}")
         if not stays:
             sel, final = chain, reduced
     if len(sel) == len(added):
@@ -183,3 +192,42 @@ def _flexible_without(diag, selection):
         chain[k] = FitResult(r.name, vals, flex.apply(rest, vals), math.nan)
     last = chain[-1]
     return chain, diag.score_heldout(FitResult(last.name, last.values, _model(diag, chain), math.nan))
+
+
+def pair_suffices(pair, cur_rows: dict, improvement, further_bar, n_candidates: int, alpha: float, explains) -> bool:
+    """Does a joint pair describe the held-out data as well as a selection of more effects?
+
+    The effects beyond a pair must earn their place against the best pair (the first selected effect fitted jointly
+    with each candidate on its sensors) as a further effect does: the selection must improve the pair's held-out
+    score by at least ``further_bar`` with p < ``alpha`` / ``n_candidates``. A greedy path can take a detour: a bulge
+    and a 0.13 m sonar bias (wall_bulge+sonar_bias, seed 3 of the random conventions) came out as the bulge plus
+    sound speed, beam width and noise scale, each step significant on top of the last, none of them there.
+
+    Parameters
+    ----------
+    pair : list of FitResult or None
+        The pair's chain (its last entry held-out scored), or None (no pair: False).
+    cur_rows : dict
+        The selection's held-out score rows (sensor → (n,)).
+    improvement : callable
+        ``improvement(cur_rows, new_rows) -> (mean, ci, p)``: the held-out improvement test of the selection.
+    further_bar : callable
+        ``further_bar(score) -> float``: the improvement a further effect needs on a model scoring ``score``.
+    n_candidates : int
+        The Bonferroni count of the test.
+    alpha : float
+        ``gap.alpha``.
+    explains : callable
+        ``explains(result) -> bool``: the pair may replace the selection only when this holds for its last FitResult
+        (it explains the gap, or the selection did not either).
+
+    Returns
+    -------
+    bool
+        True when the selection does not beat the pair and the pair passes ``explains``.
+    """
+    if pair is None:
+        return False
+    imp, _, p = improvement(pair[-1].rows_score, cur_rows)
+    beats = bool(imp >= further_bar(pair[-1].score_heldout) and np.isfinite(p) and p < alpha / max(1, n_candidates))
+    return not beats and bool(explains(pair[-1]))

@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effects as fx
+from ..detect.significance import sensor_gaps
 from ..model.replay import GapInputError
+from ..quantify.shrink import ShrinkMeter
 from .parsimony import earn_place
 from .targeted import passed
 
@@ -119,6 +121,18 @@ class Selection:
         imp, _, imp_p = self.improvement(self.cur_scores, chain[-1].rows_score)
         return bool(np.isfinite(imp_p) and imp_p < self.diag.cfg.gap.alpha and imp > 0)
 
+    def explains(self, rows_score, rows_gap) -> bool:
+        """The verdict's test on a model's held-out rows: enough shrink (``gap.unexplained_shrink``), or a
+        remainder that cannot be told from zero (:mod:`finkensim.gap.quantify.verdict`)."""
+        found, cfg = self.found, self.diag.cfg.gap
+        sensors = found.gap_sensors or list(found.base_scores)
+        if ShrinkMeter(found.base_scores, found.gap_vals, sensors, self.evaluated).shrink(
+                rows_score, rows_gap) >= cfg.unexplained_shrink:
+            return True
+        remaining = sensor_gaps(self.diag, rows_gap, found.rows_ho, found.gap_sensors, len(found.gap_vals), cfg,
+                                remainder=True)
+        return not any(r["significant"] for r in remaining.values())
+
     def second_matters(self, chain, n_candidates) -> bool:
         """The second effect of a joint fit clears a further effect's bar against the first effect of the same fit
         alone (so a better optimum of the first, which the joint search also finds, does not let a second in: a
@@ -185,13 +199,16 @@ def select_greedy(sel: Selection, max_added: int, refit_top: int) -> None:
 
 def keep_earned(sel: Selection) -> None:
     """A catch-all beside a structured effect stays only against a more flexible fit of that effect
-    (:mod:`.parsimony`); the selection and its waterfall follow what earned its place."""
+    (:mod:`.parsimony`), or when the selection, which explains the gap, would not without it; the selection and its
+    waterfall follow what earned its place."""
     if not (sel.found.significant and len(sel.added) > 1):
         return
+    explains = ((lambda r: sel.explains(r.rows_score, r.rows_gap)) if sel.explains(sel.cur_scores, sel.cur_gaps)
+                else None)
     sel.earned = earned = earn_place(sel.diag, sel.added, sel.improvement, sel.further_bar,
                                      max(1, len(sel.first) - 1), sel.evaluated,
                                      lambda a, b: max(sel.share(a.rows_gap, b.rows_gap),
-                                                      sel.share(a.rows_score, b.rows_score)))
+                                                      sel.share(a.rows_score, b.rows_score)), explains=explains)
     if earned is None:
         return
     sel.steps += [(label, n, rs, rg, _clean_nested(v)) for label, n, rs, rg, v in earned.steps]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...arena import amplitude_law
+from ...arena import bulge_law
 
 
 def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, shape: float = 2.0,
@@ -43,11 +43,7 @@ def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, sha
         raise ValueError(f"bulge shape = {shape!r}: expected > 0")
     if not 0.0 <= hinge <= 1.0:
         raise ValueError(f"bulge hinge = {hinge!r}: expected a weight in [0, 1]")
-    target = amplitude * np.exp(-(plate_distance / reach) ** shape)
-    if hinge == 0.0:
-        return target
-    x = np.clip(1.0 - plate_distance / reach, 0.0, 1.0)
-    return (1.0 - hinge) * target + hinge * amplitude * amplitude_law(x) / float(amplitude_law(1.0))
+    return bulge_law(np.asarray(plate_distance, dtype=float), amplitude, reach, shape, hinge)
 
 
 def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: float, response: float = 0.0,

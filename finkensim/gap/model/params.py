@@ -51,8 +51,8 @@ class ModelParams:
     are the ``ranging`` record's own (:meth:`with_ranging`, :mod:`finkensim.sensors.ranging_radio`). Constant IMU biases are fields of the ``imu`` record
     (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
     bulge_hinge in [0, 1]: the weight of the walls' own polynomial law in the bulge's target
-    (:func:`~finkensim.gap.model.bulge.bulge_target`; 0 = the catalogue's law, set only by the flexible refit of
-    :mod:`finkensim.gap.attribute.parsimony`).
+    (:func:`~finkensim.arena.bulge_law`; 0 = the catalogue's law; the config's ``walls.bulge_hinge``, fitted by the
+    flexible refit of :mod:`finkensim.gap.attribute.parsimony`).
     """
 
     sonar: SonarModel
@@ -78,7 +78,8 @@ class ModelParams:
                    imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
                    wall_gain=1.0 if cfg.walls.bending and "hinge" in cfg.walls.model else 0.0,
                    beam_rays=int(cfg.sonar.beam_rays), **_bulge_from_config(cfg.walls),
-                   latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency)
+                   latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency,
+                   **_tracking_from_config(cfg.gap))
 
     def with_(self, **kw) -> "ModelParams":
         """A copy with the given fields replaced."""
@@ -113,11 +114,19 @@ class ModelParams:
         return self.imu.acc_walk / sq, self.imu.gyro_walk / sq
 
 
+def _tracking_from_config(gap) -> dict:
+    """``sigma_xy``/``sigma_yaw``: the tracking noise ``gap.tracking_sigma_*`` states for every flight (the flights
+    carry the same value, :func:`~finkensim.gap.replay.prepare_flights`), None (each log's own) when -1."""
+    return {"sigma_xy": gap.tracking_sigma_xy if gap.tracking_sigma_xy >= 0 else None,
+            "sigma_yaw": gap.tracking_sigma_yaw if gap.tracking_sigma_yaw >= 0 else None}
+
+
 def _bulge_from_config(walls) -> dict:
     """The ``bulge_*`` fields of the curtain bulge the simulator flies (``walls.model``; amplitude 0 without)."""
     on = walls.bending and "bulge" in walls.model
     return dict(bulge_amplitude=walls.bulge_amplitude if on else 0.0, bulge_reach=walls.bulge_reach,
-                bulge_response=walls.bulge_response, bulge_shape=walls.bulge_shape)
+                bulge_response=walls.bulge_response, bulge_shape=walls.bulge_shape,
+                bulge_hinge=walls.bulge_hinge if on else 0.0)
 
 
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")

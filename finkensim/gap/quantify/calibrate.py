@@ -7,9 +7,9 @@ top of the config the previous ones produced (as the diagnosis applied them to i
 :func:`calibrated_toml` writes the result as a scenario file that ``finkensim run``, ``sweep`` and ``tune`` read as
 it is, with a comment at each key an effect set (which effect, its fitted parameters, its held-out shrink).
 
-A selected effect without a ``calibrate`` mapping, or fitted with a parameter beyond the catalogue's (the flexible
-refit's hinge-law weight of ``wall_bulge``, :mod:`finkensim.gap.attribute.parsimony`) away from 0, is not flown by the simulator
-yet: the file lists it in its header and :func:`calibration` marks it ``flown=False``.
+A selected effect without a ``calibrate`` mapping is not flown by the simulator yet: the file lists it in its header
+and :func:`calibration` marks it ``flown=False``. (The flexible refit of ``wall_bulge``, :mod:`finkensim.gap.attribute.parsimony`,
+fits a hinge-law weight beyond the catalogue's parameters: its mapping writes it to ``walls.bulge_hinge``.)
 """
 from __future__ import annotations
 
@@ -56,11 +56,7 @@ def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, li
     for name, params in report.details.added_params.items():
         effect = fx.REGISTRY.get(name)
         iv = dict(intervals.get(name, {}))
-        # a parameter beyond the catalogue's (the flexible refit's hinge-law weight of wall_bulge, gap/attribute/parsimony.py)
-        # away from its neutral 0 is a model the simulator cannot fly yet: the effect is listed as not flown
-        beyond = {k: v for k, v in params.items() if effect is not None and k not in {p.name for p in effect.params}
-                  and v != 0}
-        if effect is None or effect.calibrate is None or beyond:
+        if effect is None or effect.calibrate is None:
             steps.append(CalibratedEffect(name, dict(params), {}, False, alone.get(name, float("nan")), iv))
             continue
         updates = effect.calibrate(params, cfg)

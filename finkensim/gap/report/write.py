@@ -232,7 +232,8 @@ def markdown(report: GapReport, figs: dict, max_locations: int = 15) -> str:
     for t in report["verdict"].get("tried", ()):
         lines.append(f"- tried {t['effect']} beside {t['beside']}: held-out improvement {_fmt(t['improvement'], 4)} "
                      f"(needs {_fmt(t['bar'], 4)}), p = {t['p']:.3g} (needs < {t['threshold']:.3g}): "
-                     f"{'kept' if t['kept'] else 'dropped'}")
+                     f"{'kept' if t['kept'] else 'dropped'}"
+                     f"{' (without it the gap is unexplained)' if t.get('needed_to_explain') else ''}")
     if "correction" in figs:
         lines += ["", "## Data-driven correction", "", f"![correction]({figs['correction']})"]
     lines.append("")
