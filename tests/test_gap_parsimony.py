@@ -132,7 +132,7 @@ def _stub_diag():
 
     cfg = load_config()
     return SimpleNamespace(cfg=cfg, base=ModelParams.from_config(cfg), tables={"ultrasonic": None},
-                           _objective=objective, score_heldout=score_heldout, say=lambda *a: None)
+                           objective=objective, score_heldout=score_heldout, say=lambda *a: None)
 
 
 def _selection(diag):
