@@ -29,6 +29,10 @@ def point_segment_distance(px, py, ax, ay, bx, by):
     return np.sqrt(dx * dx + dy * dy)
 
 
+#: |D × AB| below this counts as parallel (D a unit vector: AB shorter than 1e-300 m or parallel to the ray)
+TINY_DENOMINATOR = 1e-300
+
+
 @njit(cache=True, inline="always")
 def ray_segment(ox, oy, dx, dy, ax, ay, bx, by, selects=True):
     """Distance along the unit ray O + t·D (t ≥ 0) to segment AB; ``inf`` if it misses or is parallel.
@@ -40,7 +44,8 @@ def ray_segment(ox, oy, dx, dy, ax, ay, bx, by, selects=True):
     ex = bx - ax
     ey = by - ay
     den = dx * ey - dy * ex
-    parallel = den == 0.0
+    # parallel, or a segment so short (|AB| < 1e-300 m) that the numerators below underflow to a false hit at t = 0
+    parallel = abs(den) < TINY_DENOMINATOR
     if not selects and parallel:
         return INF
     q = 1.0 if parallel else den

@@ -33,7 +33,7 @@ def ray_segment(o, d, a, b):
         return u[0] * v[1] - u[1] * v[0]
 
     den = cross(d, e)  # zero: ray and segment are parallel (collinear counts as a miss)
-    if den == 0.0:
+    if abs(den) < 1e-300:  # also a segment shorter than 1e-300 m: its numerators would underflow to a false t = 0
         return np.inf
     with np.errstate(over="ignore"):  # nearly parallel: t, s overflow to inf, as in the kernel
         t = cross(w, e) / den  # distance along the ray
