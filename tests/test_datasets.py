@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from finkensim.datasets import LOADERS, DatasetError, data_home, load_murp, load_util
-from finkensim.datasets.files import SHA256
+from finkensim.datasets.files import LISTED_SUMS, OWN_SHA256, expected_sum, listed_sums
 from finkensim.datasets.record import yaw_from_quaternion
 from finkensim.flightlog import load
 
@@ -48,14 +48,31 @@ def test_absent_folder_is_named(monkeypatch, tmp_path):
 
 
 @needs_data
-def test_listed_sums_are_the_ones_checked():
-    """The sums in the code are the folders' own lists (UTIL lists only its binary: its decoded files are ours)."""
-    for name, sums in SHA256.items():
-        listed = HOME / name / "SHA256SUMS.uncompressed"
-        if not listed.exists():
-            continue
-        table = dict(reversed(line.split()) for line in listed.read_text().splitlines() if line.strip())
-        assert table == sums
+def test_sums_come_from_the_folders_own_lists():
+    """MILUV and MURP are checked against the sums their folders publish (nothing of theirs is copied into the
+    code); UTIL's folder lists only its binary, so its decoded files are checked against finkensim's own sums."""
+    for name in ("miluv_cirObstacles_3_random_0", "murp_trial16"):
+        table = dict(reversed(line.split()) for line in (HOME / name / LISTED_SUMS).read_text().splitlines()
+                     if line.strip())
+        assert listed_sums(name) == table and name not in OWN_SHA256
+        assert all(expected_sum(name, f) == h for f, h in table.items())
+    assert listed_sums("util_twr_obs_log1") == {}
+    assert expected_sum("util_twr_obs_log1", "anchor_0607.txt") == OWN_SHA256["util_twr_obs_log1"]["anchor_0607.txt"]
+
+
+@needs_data
+def test_a_malformed_or_silent_list_is_named(monkeypatch, tmp_path):
+    shutil.copytree(HOME / "murp_trial16", tmp_path / "murp_trial16")
+    monkeypatch.setenv("FINKENSIM_DATA", str(tmp_path))
+    listed = tmp_path / "murp_trial16" / LISTED_SUMS
+    listed.chmod(0o644)
+    lines = listed.read_text().splitlines()
+    listed.write_text("\n".join(lines[1:]) + "\n")
+    with pytest.raises(DatasetError, match="no SHA-256 sum for file 16_base-1_targ-2"):
+        load_murp()
+    listed.write_text("not a sum\n")
+    with pytest.raises(DatasetError, match="SHA256SUMS.uncompressed: line 1 reads 'not a sum'"):
+        load_murp()
 
 
 @needs_data

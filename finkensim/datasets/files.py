@@ -2,7 +2,8 @@
 
 The recordings stay outside the repository (``../shared/realdata/`` beside the clone, or any folder named by the
 environment variable ``FINKENSIM_DATA``). Each dataset lives in a sub-folder; every file it uses is checked
-against the SHA-256 of its uncompressed bytes (:data:`SHA256`) before it is read, so a truncated or edited copy is
+against the SHA-256 of its uncompressed bytes before it is read: the sum the folder itself lists
+(:data:`LISTED_SUMS`), or finkensim's own (:data:`OWN_SHA256`) for a file the folder lists none for, so a truncated or edited copy is
 a named error, never silently different numbers.
 """
 from __future__ import annotations
@@ -12,32 +13,19 @@ import hashlib
 import os
 from pathlib import Path
 
-__all__ = ["DatasetError", "SHA256", "data_home", "dataset_folder", "verified_bytes", "read_csv_verified"]
+__all__ = ["DatasetError", "LISTED_SUMS", "OWN_SHA256", "data_home", "dataset_folder", "listed_sums", "expected_sum",
+           "verified_bytes", "read_csv_verified"]
 
 ENV = "FINKENSIM_DATA"
 
-#: SHA-256 of each file's uncompressed bytes, by dataset folder and file name (without ``.gz``). MILUV and MURP:
-#: copied from the folders' ``SHA256SUMS.uncompressed``; UTIL: that folder lists only the original binary log
-#: (``SHA256SUMS.original_binary``), so these are the sums of its decoded CSV files and survey file as published
-#: there (``zcat FILE.gz | sha256sum``).
-SHA256 = {
-    "miluv_cirObstacles_3_random_0": {
-        "ifo001/mocap.csv": "e633dc86e442b4b6a92643db3501a9bac1c912d5b8c9b6194b90437cb540e7d8",
-        "ifo002/mocap.csv": "f6184648cc935afc97e037677dd2486100db3ccfb375672f542d00349c075677",
-        "ifo003/mocap.csv": "684ac2748dce9f5343d055a55e52b4f3b0195de882a35ab3503288baac5c28cb",
-        "ifo001/uwb_range.csv": "d79d77aafa44715a0f5f3302de4eb08ff158837c423597807481c029a552dad8",
-        "ifo002/uwb_range.csv": "8bf7381fc06d7dd2126fab59951533f054e00e91b13d0bb05ccc14bff8349305",
-        "ifo003/uwb_range.csv": "14729982c5cf392a37c4abc80a1d90481581342ed2a1af4fe229839ebfceab14",
-        "timeshift.yaml": "4b392d2924fa445bb930b059da8b7eacca9e1bd0386ba642e93fba6b79be475f",
-    },
-    "murp_trial16": {
-        "16_base-1_targ-2_win-1_step-1.csv": "5bf2877da7066481d762dfcc9191d36e384d4b4df7d3aaa5859a943f54763bbb",
-        "16_base-1_targ-3_win-1_step-1.csv": "40aba04b43b56605e98a8cc2e979fc925e6d26fd93a611e3f6ffc906942bac0d",
-        "16_base-2_targ-1_win-1_step-1.csv": "f9685baf41372219cdb3a9373adb413b91a75352b78c40ac25e272a04512f6bb",
-        "16_base-2_targ-3_win-1_step-1.csv": "ef70e73f11574ace7dd22ef3a0b848aee2f29bf47307d225f4cd163a1fcdb875",
-        "16_base-3_targ-1_win-1_step-1.csv": "128828f90cc5090f014fa5de7a17013df157224d267d00ef4e4872a3d4a6a63f",
-        "16_base-3_targ-2_win-1_step-1.csv": "cfc60284978bdd44e11c528a350c1decece2fae4aa40aed7292b8c5e27ed4a45",
-    },
+#: The list of SHA-256 sums each dataset folder publishes: one line ``<hex>  <file>`` per file, of the uncompressed
+#: bytes (MILUV, MURP and the Paparazzi log publish one).
+LISTED_SUMS = "SHA256SUMS.uncompressed"
+
+#: SHA-256 of the uncompressed bytes of files whose folder publishes no sum for them, by dataset folder and file name
+#: (without ``.gz``): UTIL's folder lists only the original binary log (``SHA256SUMS.original_binary``), so these are
+#: finkensim's own sums of the decoded CSV files and the survey file as published there (``zcat FILE.gz | sha256sum``).
+OWN_SHA256 = {
     "util_twr_obs_log1": {
         "estDistance.csv": "d0eb7d7435da124d449e4b577baa8c02a1c292db8b7d7291d35156cb870fdb9c",
         "estPose_mocap.csv": "81a501a7bba0dd4d7c55d8d924a85b89842750a91fba8c7c8663f5442a250224",
@@ -73,7 +61,7 @@ def data_home() -> Path:
 
 
 def dataset_folder(name: str) -> Path:
-    """The sub-folder of one dataset (a key of :data:`SHA256`), or a :class:`DatasetError` naming it."""
+    """The sub-folder ``name`` of one dataset (e.g. ``"murp_trial16"``), or a :class:`DatasetError` naming it."""
     folder = data_home() / name
     if not folder.is_dir():
         raise DatasetError(f"dataset folder {folder} does not exist; expected the {name!r} recording there "
@@ -81,9 +69,36 @@ def dataset_folder(name: str) -> Path:
     return folder
 
 
+def listed_sums(dataset: str) -> dict[str, str]:
+    """The SHA-256 sums that the folder of ``dataset`` publishes (:data:`LISTED_SUMS`): file name → hex digest;
+    empty when it publishes none. A malformed line is a :class:`DatasetError` naming the file and the line."""
+    path = dataset_folder(dataset) / LISTED_SUMS
+    if not path.is_file():
+        return {}
+    sums = {}
+    for number, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        parts = line.split()
+        if len(parts) != 2 or len(parts[0]) != 64:
+            raise DatasetError(f"{path}: line {number} reads {line[:80]!r}; expected '<64 hex digits>  <file name>'")
+        sums[parts[1].lstrip("*")] = parts[0].lower()
+    return sums
+
+
+def expected_sum(dataset: str, name: str) -> str:
+    """The SHA-256 that file ``name`` of ``dataset`` must have: the folder's own list first, then
+    :data:`OWN_SHA256`; a :class:`DatasetError` when neither holds one."""
+    want = listed_sums(dataset).get(name) or OWN_SHA256.get(dataset, {}).get(name)
+    if want is None:
+        raise DatasetError(f"{dataset_folder(dataset)}: no SHA-256 sum for file {name} (neither in the folder's "
+                           f"{LISTED_SUMS} nor in finkensim's own list); expected the published folder")
+    return want
+
+
 def verified_bytes(dataset: str, name: str) -> bytes:
     """The uncompressed bytes of file ``name`` of ``dataset`` (read from ``name`` or ``name.gz``), checked against
-    :data:`SHA256`; a :class:`DatasetError` names the file when it is absent, unreadable or differs."""
+    :func:`expected_sum`; a :class:`DatasetError` names the file when it is absent, unreadable or differs."""
     folder = dataset_folder(dataset)
     plain, packed = folder / name, folder / f"{name}.gz"
     try:
@@ -98,7 +113,7 @@ def verified_bytes(dataset: str, name: str) -> bytes:
             raise
         raise DatasetError(f"{folder}: file {name} cannot be read ({exc}); expected the published copy") from None
     got = hashlib.sha256(data).hexdigest()
-    want = SHA256[dataset][name]
+    want = expected_sum(dataset, name)
     if got != want:
         raise DatasetError(f"{folder}: file {name} has SHA-256 {got}, expected {want} (a corrupt or different copy; "
                            "fetch the published one again)")
