@@ -168,6 +168,8 @@ def test_calibrated_table_counts_trials_without_a_gap():
     md = calibrated_table(rows)
     assert "| sonar_bias | 4 | 75 % |" in md and "| 15 % | 0/4 |" in md
     assert "| foreign | 1 | 0 % |" in md and "| 40 % | 1/1 |" in md and "other" not in md
+    tiny = calibrated_table([{"case": "null", "calibrated_significant": False, "calibrated_gap_ratio": -0.001}])
+    assert "| 0 % | 0/1 |" in tiny and "-0 %" not in tiny  # a ratio within half a per cent of 0 reads 0, never -0
 
 
 def test_a_bulge_refitted_with_the_hinge_law_is_flown_with_its_hinge_weight():

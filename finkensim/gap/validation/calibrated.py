@@ -68,5 +68,5 @@ def calibrated_table(rows: list[dict]) -> str:
         ratio = np.nanmedian([r["calibrated_gap_ratio"] for r in rs]) if n else math.nan
         corr = sum(bool(r.get("calibrated_correction")) for r in rs)
         lines.append(f"| {case} | {n} | {100 * k / n:.0f} % | {100 * lo:.0f}–{100 * hi:.0f} % | "
-                     f"{'n/a' if not np.isfinite(ratio) else f'{100 * ratio:.0f} %'} | {corr}/{n} |")
+                     f"{'n/a' if not np.isfinite(ratio) else f'{round(100 * ratio)} %'} | {corr}/{n} |")
     return "\n".join(lines) + "\n"
