@@ -11,6 +11,17 @@ from .result import GapDetails, GapReport
 __all__ = ["assemble_report"]
 
 
+def _gap_before_interval(diag, found, sensors) -> tuple:
+    """The block-bootstrap 95 % interval and p-value of ``gap_before`` itself: the held-out gap averaged over the
+    sensors the shrink is measured on (``sensors``, those with a significant gap when there are any). The detect
+    step's interval is of the average over every sensor (the report's ``calibration_gap``); it is reused when the
+    two averages are over the same sensors."""
+    if list(sensors) == list(found.gap_vals):
+        return found.gap_ci, found.gap_p
+    _, ci, p = diag.overall({s: found.gap_vals[s] for s in sensors}, found.rows_ho)
+    return ci, p
+
+
 def assemble_report(sel: Selection, out: Outcome, seconds: float) -> GapReport:
     """The :class:`GapReport` of a selection and its measures.
 
@@ -32,8 +43,9 @@ def assemble_report(sel: Selection, out: Outcome, seconds: float) -> GapReport:
     diag, found, cfg = sel.diag, sel.found, sel.diag.cfg.gap
     significant, locs = found.significant, found.locs
     little = too_little_data(found.sizes, {s: s in found.gap_sensors for s in found.sizes})
+    gap_ci, gap_p = _gap_before_interval(diag, found, out.meter.sensors)
     details = GapDetails(
-        gap_before_ci=list(found.gap_ci), gap_before_p=found.gap_p, score_before=found.score_before,
+        gap_before_ci=list(gap_ci), gap_before_p=gap_p, score_before=found.score_before,
         per_sensor=found.per_sensor, gap_sensors=found.gap_sensors,
         waterfall=out.waterfall, added=[r.name for r in sel.added], total_shrink=out.total_shrink,
         ties=sel.ambiguous,
