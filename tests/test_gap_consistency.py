@@ -59,6 +59,12 @@ def test_a_shifted_mixture_diagnosed_with_the_default_one_is_a_ranging_gap(tmp_p
     rep = diagnose(_logs(cfg, 3), ["a.npz", "b.npz"], load_config().replace(SMALL), effect_names=[])
     assert rep["verdict"]["significant_gap"] is True
     assert rep.details.gap_sensors == ["ranging"]
+    # each interval is of its own estimate: gap_before averages the sensors with a gap (here the ranging only),
+    # calibration_gap every sensor
+    lo, hi = rep.details.gap_before_ci
+    assert lo <= rep.gap_before <= hi and rep.details.gap_before_p < 0.05
+    lo, hi = rep.details.calibration_ci
+    assert lo <= rep.details.calibration_gap <= hi and rep.details.calibration_gap < rep.gap_before
 
 
 @pytest.mark.parametrize("content", [None, "{not json"])

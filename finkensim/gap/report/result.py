@@ -38,7 +38,7 @@ def json_safe(x):
 class GapDetails:
     """What a diagnosis found beyond the spec's fields.
 
-    gap_before_ci (2,), gap_before_p: bootstrap CI and p-value of the held-out gap; score_before: mean
+    gap_before_ci (2,), gap_before_p: block-bootstrap CI and p-value of ``gap_before`` itself (the held-out gap averaged over the sensors with a significant gap, or every sensor when none has one); score_before: mean
     held-out score of the configured model; per_sensor: sensor → {gap, ci, p, significant}; gap_sensors:
     the sensors with a significant gap; waterfall: the forward-selection steps ({step, effect, gap_heldout,
     ci, params}); added: the effects selected in order; total_shrink: 1 − gap after all added / gap before
