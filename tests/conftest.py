@@ -13,7 +13,8 @@ from tests import suite_precompile
 load_profile()
 
 #: environment variable naming a file to which every pytest process (each xdist worker) appends one line per outermost
-#: numba compilation: pid, xdist worker, seconds, kernel, argument types, test; the summary counts the seconds of
+#: numba compilation: pid, xdist worker, wall seconds, kernel, argument types, test, CPU seconds (this process's
+#: ``time.process_time``); the summary counts the CPU seconds of
 #: kernels that several processes compiled for the same argument types
 COMPILE_LOG = "FINKENSIM_COMPILE_LOG"
 
