@@ -32,11 +32,9 @@ def compiled_functions() -> dict[int, str]:
     found: dict[int, str] = {}
     libraries = {}
     for obj in gc.get_objects():
-        try:
-            is_dispatcher = isinstance(obj, CPUDispatcher)
-        except ReferenceError:  # a weakref.proxy whose object is gone (isinstance asks it for its class)
-            continue
-        if is_dispatcher:
+        # the object's own type, never isinstance: isinstance asks an object that is not a dispatcher for its
+        # __class__, which a proxy or lazy object can answer with any exception (a dead weakref.proxy: ReferenceError)
+        if issubclass(type(obj), CPUDispatcher):
             for cres in list(obj.overloads.values()):
                 libraries[id(cres.library)] = cres.library
     for lib in libraries.values():

@@ -17,6 +17,10 @@ The jobs:
 * ``flight log and figures``: :func:`~finkensim.scenario.flight_log` with the error-free values and the wall figure of
   ``finkensim run`` on a two-sample record of zeros (the ideal ranging table and readings, the plate distances).
 
+Every job builds the configuration's swarm and its initial state first (the placement kernel, the ranging table's
+alias builder): :data:`SETUP` compiles those once, in one process, before the jobs start (while the other processes
+import the package), so that no two jobs compile them side by side.
+
 ``finkensim compile --gap`` adds the diagnosis's kernels (:func:`finkensim.gap.warmup.compile_diagnosis`: a
 diagnosis of two short simulated flights), so that the first ``finkensim gap`` does not compile either.
 """
@@ -32,7 +36,7 @@ import numpy as np
 
 from .config import Config
 
-__all__ = ["JOBS", "CompiledKernel", "JobResult", "compile_kernels", "run_job"]
+__all__ = ["JOBS", "SETUP", "CompiledKernel", "JobResult", "compile_kernels", "run_job"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,17 @@ def _flight_swarm(cfg: Config):
     cfg = cfg.replace({"simulation.n_envs": 1}) if cfg.simulation.n_envs != 1 else cfg
     swarm = SwarmSim(cfg)
     return cfg, swarm, swarm.init(n_envs=1, seed=cfg.simulation.seed), flight_record_names(swarm, ideal=True)
+
+
+def _swarm_setup(cfg: Config) -> None:
+    _flight_swarm(cfg)
+
+
+def _imports(cfg: Config) -> None:
+    """What the jobs import (while :data:`SETUP` compiles in another process)."""
+    import matplotlib.pyplot  # noqa: F401 - imported for its import time
+
+    from . import scenario, swarm, viz  # noqa: F401
 
 
 def _closed_loop(cfg: Config) -> None:
@@ -91,6 +106,10 @@ JOBS: dict[str, Callable[[Config], None]] = {
 }
 
 
+#: the calls every job makes first (the swarm of the configuration and its initial state), compiled once before them
+SETUP: tuple[str, Callable[[Config], None]] = ("set-up shared by the jobs", _swarm_setup)
+
+
 def run_job(cfg: Config, job: str, calls: Callable[[Config], None]) -> JobResult:
     """Run the job named ``job``, ``calls(cfg)``, in this process; what it compiled (warnings of the tiny inputs
     muted)."""
@@ -106,16 +125,26 @@ def run_job(cfg: Config, job: str, calls: Callable[[Config], None]) -> JobResult
     return JobResult(job, time.perf_counter() - t0, compiled)
 
 
-def compile_kernels(cfg: Config, workers: int = 2, jobs: dict | None = None) -> Iterator[JobResult]:
-    """Compile ``cfg``'s kernels into the shared cache: ``jobs`` (name → top-level function of the config; default
-    :data:`JOBS`) on ``workers`` fresh processes (spawned: a forked numba runtime is not safe); yields each job's
-    :class:`JobResult` as it finishes. ``workers=0`` runs them one after another in this process."""
+def compile_kernels(cfg: Config, workers: int = 2, jobs: dict | None = None,
+                    setup: tuple[str, Callable[[Config], None]] | None = SETUP) -> Iterator[JobResult]:
+    """Compile ``cfg``'s kernels into the shared cache: ``setup`` (name, top-level function of the config: the calls
+    every job makes first; None: no set-up) in one process, then ``jobs`` (name → top-level function of the config;
+    default :data:`JOBS`) on ``workers`` fresh processes (spawned: a forked numba runtime is not safe); yields the
+    set-up's and each job's :class:`JobResult` as it finishes. ``workers=0`` runs them one after another in this
+    process."""
     jobs = JOBS if jobs is None else jobs
     if workers == 0:
-        for job, calls in jobs.items():
+        for job, calls in ((setup,) if setup else ()) + tuple(jobs.items()):
             yield run_job(cfg, job, calls)
         return
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=get_context("spawn")) as pool:
+    n = min(workers, len(jobs))
+    with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as pool:
+        if setup is not None:
+            first = pool.submit(run_job, cfg, *setup)
+            # the other processes start now and import the package meanwhile (a pool spawns a process per submit)
+            for future in [pool.submit(run_job, cfg, "imports", _imports) for _ in range(n - 1)]:
+                future.result()
+            yield first.result()
         futures = [pool.submit(run_job, cfg, job, calls) for job, calls in jobs.items()]
         for future in as_completed(futures):
             yield future.result()

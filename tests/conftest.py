@@ -1,5 +1,6 @@
-"""Suite-wide checks, the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md), and an opt-in
-log of numba's compilations (``FINKENSIM_COMPILE_LOG=path``, docs/performance.md)."""
+"""Suite-wide checks, the Hypothesis profile (``FINKENSIM_HYPOTHESIS=fast|thorough``, docs/testing.md), the kernels
+several xdist workers need compiled once before they start (opt-in: ``FINKENSIM_PRECOMPILE=1``,
+tests/suite_precompile.py), and an opt-in log of numba's compilations (``FINKENSIM_COMPILE_LOG=path``, docs/performance.md)."""
 import os
 import time
 
@@ -7,11 +8,13 @@ import numba
 import pytest
 
 from finkensim.testing.profiles import load_profile
+from tests import suite_precompile
 
 load_profile()
 
 #: environment variable naming a file to which every pytest process (each xdist worker) appends one line per outermost
-#: numba compilation: pid, xdist worker, seconds, kernel, argument types, test; the summary counts the seconds of
+#: numba compilation: pid, xdist worker, wall seconds, kernel, argument types, test, CPU seconds (this process's
+#: ``time.process_time``); the summary counts the CPU seconds of
 #: kernels that several processes compiled for the same argument types
 COMPILE_LOG = "FINKENSIM_COMPILE_LOG"
 
@@ -30,25 +33,34 @@ def _log_compilations(path: str) -> None:
         def on_start(self, ev):
             disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
             name = getattr(getattr(disp, "py_func", None), "__qualname__", None) or str(disp)
-            self.stack.append((time.perf_counter(), name, ev))
+            self.stack.append((time.perf_counter(), time.process_time(), name, ev))
 
         def on_end(self, ev):
             if not self.stack:
                 return
-            t0, name, ev = self.stack.pop()
+            t0, cpu0, name, ev = self.stack.pop()
             if self.stack:
                 return
             test = os.environ.get("PYTEST_CURRENT_TEST", "").split(" ")[0]
             args = ev.data.get("args") if isinstance(ev.data, dict) else None
             with open(path, "a") as f:
-                f.write(f"{os.getpid()}\t{worker}\t{time.perf_counter() - t0:.2f}\t{name}\t{args}\t{test}\n")
+                f.write(f"{os.getpid()}\t{worker}\t{time.perf_counter() - t0:.2f}\t{name}\t{args}\t{test}\t"
+                        f"{time.process_time() - cpu0:.2f}\n")
 
     event.register("numba:compile", _Log())
+
+
+#: what the precompile did (tests/suite_precompile.py), said in the terminal summary
+PRECOMPILED = pytest.StashKey[str]()
 
 
 def pytest_configure(config):
     if os.environ.get(COMPILE_LOG):
         _log_compilations(os.environ[COMPILE_LOG])
+    # the xdist controller, before it starts the workers: the kernels several workers need, compiled once (opt-in)
+    workers = suite_precompile.wanted(config)
+    if workers:
+        config.stash[PRECOMPILED] = suite_precompile.precompile(workers)
 
 
 def _compile_log_summary(write, path: str) -> None:
@@ -58,8 +70,9 @@ def _compile_log_summary(write, path: str) -> None:
     except OSError:
         return
     by_kernel: dict = {}
-    for pid, _, seconds, name, args, _test in (r for r in rows if len(r) == 6):
-        by_kernel.setdefault((name, args), []).append((float(seconds), pid))
+    for row in (r for r in rows if len(r) == 7):
+        pid, name, args, cpu = row[0], row[3], row[4], row[6]
+        by_kernel.setdefault((name, args), []).append((float(cpu), pid))
     total = sum(s for runs in by_kernel.values() for s, _ in runs)
     again = [(key, runs) for key, runs in by_kernel.items() if len({pid for _, pid in runs}) > 1]
     extra = sum(sum(sorted(s for s, _ in runs)[:-1]) for _, runs in again)
@@ -98,6 +111,8 @@ def pytest_terminal_summary(terminalreporter):
     ``FINKENSIM_COMPILE_LOG`` the compilations several processes made."""
     import sys
 
+    if PRECOMPILED in terminalreporter.config.stash:
+        terminalreporter.write_line(terminalreporter.config.stash[PRECOMPILED])
     if os.environ.get(COMPILE_LOG) and not hasattr(terminalreporter.config, "workerinput"):
         _compile_log_summary(terminalreporter.write_line, os.environ[COMPILE_LOG])
 

@@ -343,9 +343,17 @@ def test_tune_help_shows_one_percent_sign():
 # item 10: Ctrl-C and SIGTERM end sweep and tune with one line
 # ------------------------------------------------------------------------------------------
 
+#: seconds a command may take to end after the signal before the test calls it hung (its pool or cluster teardown)
+SIGNAL_TO_EXIT_S = 900
+
+
 def _signal_when(args, cwd, ready, sig):
     """Start ``finkensim ARGS`` in its own process group (as a terminal job), send ``sig`` to the whole group once
-    ``ready()`` is true; returns (exit code, stderr)."""
+    ``ready()`` is true; returns (exit code, stderr).
+
+    No clock decides: the command may take any time to get ready (on a cold kernel cache its workers compile first,
+    minutes on a loaded machine), and the test fails only if it ends before it is ready or does not end after the
+    signal (``SIGNAL_TO_EXIT_S``, a bound for a hang, not a speed)."""
     import os
     import signal
     import subprocess
@@ -357,12 +365,11 @@ def _signal_when(args, cwd, ready, sig):
                          stderr=subprocess.PIPE, text=True, start_new_session=True,
                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
-        deadline = time.monotonic() + 300
         while not ready():
-            assert p.poll() is None and time.monotonic() < deadline, "ended or too slow before the signal"
+            assert p.poll() is None, f"ended before the signal (exit code {p.returncode}): {p.stderr.read()}"
             time.sleep(0.3)
         os.killpg(p.pid, sig)
-        _, err = p.communicate(timeout=120)
+        _, err = p.communicate(timeout=SIGNAL_TO_EXIT_S)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
