@@ -110,7 +110,7 @@ def test_no_module_imports_another_modules_private_names():
 
 # lower layers never import upper ones (docs/architecture.md, "Layers")
 LAYERS = [
-    ("config", "configfields", "arrays", "kernels", "budget", "atomic", "filekinds", "numba_cache", "compiletime"),
+    ("config", "configfields", "arrays", "kernels", "budget", "atomic", "filekinds", "numba_cache", "compiletime", "lazy"),
     ("arena", "copters", "sensors"),
     ("world", "behaviours"),
     ("swarm",),

@@ -14,18 +14,21 @@ base and interpolates the poses to it (:mod:`.align`, :mod:`.poses`). :func:`to_
 """
 from __future__ import annotations
 
-from .align import build_flight, place_readings
-from .bags import read_bag, write_bag
-from .clock import ClockEstimate, ClockOffsetError, estimate_offset
-from .csvtables import read_csv
-from .export import to_recording, write_csv
-from .paparazzi import PaparazziLog, read_paparazzi
-from .paparazzi_export import write_paparazzi
-from .paparazzi_protocol import PaparazziMap, Protocol, read_map, read_protocol
-from .recording import (IMU_CHANNELS, READING_COLUMNS, TRACKING_COLUMNS, Recording, RecordingError, check_recording,
-                        parse_channel)
+from ..lazy import lazy_exports
 
+# each name is imported from its module on first use: the command line's argument parser imports this package's
+# `cli` without loading pandas and the readers
+_EXPORTS = {
+    **dict.fromkeys(["build_flight", "place_readings"], ".align"), **dict.fromkeys(["read_bag", "write_bag"], ".bags"),
+    **dict.fromkeys(["ClockEstimate", "ClockOffsetError", "estimate_offset"], ".clock"), "read_csv": ".csvtables",
+    **dict.fromkeys(["to_recording", "write_csv"], ".export"),
+    **dict.fromkeys(["PaparazziLog", "read_paparazzi"], ".paparazzi"), "write_paparazzi": ".paparazzi_export",
+    **dict.fromkeys(["PaparazziMap", "Protocol", "read_map", "read_protocol"], ".paparazzi_protocol"),
+    **dict.fromkeys(["IMU_CHANNELS", "READING_COLUMNS", "TRACKING_COLUMNS", "Recording", "RecordingError",
+                     "check_recording", "parse_channel"], ".recording"),
+}
 __all__ = ["Recording", "RecordingError", "TRACKING_COLUMNS", "READING_COLUMNS", "IMU_CHANNELS", "read_csv",
            "build_flight", "place_readings", "check_recording", "parse_channel", "estimate_offset", "ClockEstimate",
            "ClockOffsetError", "to_recording", "write_csv", "read_bag", "write_bag", "read_paparazzi", "PaparazziLog",
            "write_paparazzi", "read_protocol", "Protocol", "read_map", "PaparazziMap"]
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -8,9 +8,12 @@ See :mod:`finkensim.tune.studyfile` for the study file and :mod:`finkensim.tune.
 """
 from __future__ import annotations
 
-from .evaluate import compare, evaluate, mean_ci
-from .run import StudyResult, run_study, select_best, storage_url
-from .studyfile import Param, StudySpec, parse_study
+from ..lazy import lazy_exports
 
-__all__ = ["run_study", "parse_study", "StudySpec", "StudyResult", "Param", "evaluate", "compare", "mean_ci",
-           "select_best", "storage_url"]
+# each name is imported from its module on first use: `finkensim tune --help` and the other commands' argument
+# parsing do not import numba and optuna
+_EXPORTS = {"run_study": ".run", "parse_study": ".studyfile", "StudySpec": ".studyfile", "StudyResult": ".run",
+            "Param": ".studyfile", "evaluate": ".evaluate", "compare": ".evaluate", "mean_ci": ".evaluate",
+            "select_best": ".run", "storage_url": ".run"}
+__all__ = list(_EXPORTS)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
