@@ -1,7 +1,7 @@
 """Where the time of the full FINken step goes: ``python -m benchmarks.breakdown [--n 10 100]``.
 
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
-B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's twins of the
+B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's outlined copies of the
 kernels, see :mod:`finkensim.swarm.kernel`), on states taken from a real run (the swarm after
 100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum (markdown);
 ``make bench`` puts the N = 10 table in its report, beside the comparison workload's cost on one thread.

@@ -47,8 +47,8 @@ def _n_params(node) -> int:
 
 
 #: what compiles a Python function with numba: its decorators, and the package's own wrapper that re-jits one
-#: (``kernels/twin.py``)
-COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil", "twin"}
+#: (``kernels/outline.py``)
+COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil", "outlined"}
 
 
 def _callee_name(node) -> str:
@@ -62,7 +62,7 @@ def _callee_name(node) -> str:
 
 def _compiled_functions(tree: ast.Module) -> list:
     """Functions numba compiles: decorated with a :data:`COMPILERS` name, or passed by name to one
-    (``f_twin = twin(f)``, ``njit(cache=True)(f)``)."""
+    (``f_outlined = outlined(f)``, ``njit(cache=True)(f)``)."""
     passed = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and _callee_name(node) in COMPILERS | {""}:
@@ -155,7 +155,7 @@ def test_no_two_compilations_of_one_function_differ_in_options():
     compile options: two ``njit`` dispatchers of the same ``py_func`` with different code-changing options
     (``parallel``, ``fastmath``, …) share one cache entry, and a warm cache then hands one the other's machine
     code — a ``parallel=True`` kernel silently ran on one thread that way. Re-jitting with the same options (the
-    non-inlined twins of ``inline="always"`` kernels) is fine."""
+    outlined copies of ``inline="always"`` kernels) is fine."""
     import importlib
     import pkgutil
 

@@ -97,7 +97,7 @@ def random_target_env(seed, env_id, step, n, redraw_steps, target_distance):
     return target_distance * np.cos(phi), target_distance * np.sin(phi)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def attraction_env(sonar_b, wall_b, seed, env_id, step, attraction, cmd_v, cmd_w):
     """Commands of one environment. sonar_b (N, 4) m, wall_b (N, 4) bool → cmd_v (N, 2) m/s body frame,
     cmd_w (N,) rad/s (always 0)."""
@@ -133,7 +133,7 @@ def attraction_env(sonar_b, wall_b, seed, env_id, step, attraction, cmd_v, cmd_w
         cmd_w[n] = 0.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def body_to_world_env(yaw_b, v_body, v_world):
     """Rotate body-frame vectors (N, 2) by the heading yaw_b (N,) rad into the world frame (N, 2)."""
     for n in range(yaw_b.shape[0]):

@@ -67,7 +67,7 @@ def shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, gain, pa_out, 
         pb_out[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_out):
     """Plate surfaces at flight height for one environment: theta_b (S,) rad → pa_out, pb_out (S, 2) m,
     each plate shifted along its inward normal by lever · sin θ (as ``Arena.plate_surfaces``)."""
@@ -366,7 +366,7 @@ def measured_reading(d, echo, path, key, k, sonar, err=None):
     return clamp_reading(y, sonar)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def ultrasonic_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
     """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
 
@@ -412,7 +412,7 @@ def ultrasonic_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
         correct_readings_env(out, dist, kind, sonar.correction, scalars, counter)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def down_env(alt_b, sonar, seed, env_id, step, out):
     """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
     scalars = sonar_scalars(sonar)

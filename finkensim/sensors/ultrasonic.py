@@ -81,7 +81,7 @@ in sonar order front, left, back, right.
 :mod:`finkensim.kernels.raycast`. They are ``inline="always"`` numba functions of arrays, numbers and
 the :class:`SonarModel` NamedTuple, so compiled loops (the swarm rollout, the gap replay) call the very
 same code with their own work buffers. This module holds the batched Python API; its parallel loops call
-non-inlined twins of the same Python functions (identical results; much shorter compilation).
+outlined copies of the same Python functions (identical results; much shorter compilation).
 
 **Fields beyond the config.** :class:`SonarModel` also has ``range_scale`` (1), ``bias`` (0 m) and
 ``crosstalk_hear_probability`` (1): an echo reads range_scale · d + bias before its error, and a
@@ -98,7 +98,7 @@ from ..arena import shift_plates_env
 from ..config import ConfigError
 from ..kernels.cellgrid import NO_GRID, no_grid_buffers
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
-from ..kernels.twin import twin
+from ..kernels.outline import outlined
 from .sonar_kernels import (crosstalk_path, displaced_plates_env, down_env, echo_reading, fire_slot, fire_slots_env,
                             ideal_env, measured_reading, shifted_plates_env, sonar_hit, sonar_poses_env,
                             ultrasonic_env)
@@ -123,12 +123,12 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # batched kernels
 
-# Batched kernels call non-inlined twins of the per-environment kernels (finkensim.kernels.twin): the same code,
+# Batched kernels call outlined copies of the per-environment kernels (finkensim.kernels.outline): the same code,
 # compiled once as a function (its helpers inlined into it) instead of being inlined into every prange body, which
 # keeps numba's parallel-loop compilation short.
-_ideal_env_fn = twin(ideal_env)
-_ultrasonic_env_fn = twin(ultrasonic_env)
-_down_env_fn = twin(down_env)
+_ideal_env_fn = outlined(ideal_env)
+_ultrasonic_env_fn = outlined(ultrasonic_env)
+_down_env_fn = outlined(down_env)
 
 
 @njit(cache=True, parallel=True)

@@ -6,7 +6,7 @@ same counter-based random numbers as the kernels, from ``finkensim.kernels.rng.u
 docstring of the kernel), so it agrees with the kernels to rounding.
 
 What it shares and why: the plate geometry (``Arena.plate_surfaces``: where a bent plate is) and the random-number
-layout (which uniform feeds which error) are the model's definitions, so this twin restates them to check the
+layout (which uniform feeds which error) are the model's definitions, so this reference restates them to check the
 kernels' loops, culling and draw bookkeeping — it cannot catch a wrong definition. Those are checked elsewhere
 against references that share nothing: the ray cast against a closed form of rectangle walls and circles
 (``tests/test_edges.py::test_ideal_sonar_equals_an_independent_closed_form``), the error laws against scipy's
