@@ -115,9 +115,9 @@ LAYERS = [
     ("world", "behaviours"),
     ("swarm",),
     ("flightlog", "metrics", "analysis", "default_scenario"),
-    ("scenario", "episode", "checks", "viz", "precompile"),
+    ("scenario", "episode", "determinism", "viz", "precompile"),
     ("sweep", "gap"),
-    ("envs", "tune", "importing", "checkfiles", "datasets", "testing", "plugin_checks"),  # check reads study files and recordings too
+    ("envs", "tune", "importing", "checkfiles", "datasets", "testing", "plugin_checkers"),  # check reads study files and recordings too
     ("cli", "cliargs", "precompile_cli", "gapvalidate_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}
