@@ -191,9 +191,61 @@ def test_fits_see_the_diagnosis_only_through_the_fit_objective():
     for name in ("fits", "effects", "effects_radio", "objective", "parsimony"):
         path = PACKAGE / "gap" / "attribute" / f"{name}.py"
         for node in ast.walk(_tree(path)):
-            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[-1] == "diagnosis" and name != "parsimony":
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[-1] == "diagnosis":
                 bad.append(f"{_rel(path)}:{node.lineno} imports {node.module}")
             if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "diag"
                     and node.attr.startswith("_") and not node.attr.startswith("__")):
                 bad.append(f"{_rel(path)}:{node.lineno} diag.{node.attr}")
     assert not bad, f"fits reaching past FitObjective: {bad}"
+
+
+#: the stages of gap/ in pipeline order (docs/architecture.md, "The gap diagnosis, by stage"): a module imports only
+#: from its own stage or an earlier one; gap/__init__.py (the package's public names) is above them all
+GAP_STAGES = [("model",), ("detect",), ("attribute",), ("quantify",), ("report",), ("diagnosis", "pipeline", "warmup"),
+              ("validation",)]
+_GAP_STAGE = {name: i for i, names in enumerate(GAP_STAGES) for name in names}
+GAP = PACKAGE / "gap"
+
+
+def _gap_imports(path: Path) -> list[tuple[int, str]]:
+    """(line, stage) of every import of a gap/ module in ``path``: relative at any depth, absolute
+    (``finkensim.gap.…``), at module level or inside a function, ``from .. import diagnosis`` included."""
+    package = list(path.relative_to(PACKAGE).parts[:-1])
+    out = []
+    for node in ast.walk(_tree(path)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                if node.level - 1 > len(package):
+                    continue
+                base = package[:len(package) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+            elif (node.module or "").startswith("finkensim."):
+                base = node.module.split(".")[1:]
+            else:
+                continue
+            if base[:1] != ["gap"]:
+                continue
+            targets = base[1:2] or [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [a.name.split(".")[2] for a in node.names if a.name.startswith("finkensim.gap.")]
+        else:
+            continue
+        out += [(node.lineno, t) for t in targets if t in _GAP_STAGE]
+    return out
+
+
+def test_gap_imports_follow_the_stages():
+    """Imports inside gap/ flow one way: model ← detect ← attribute ← quantify ← report ← diagnosis, pipeline ←
+    validation; a piece two stages share lives in the earlier one (docs/architecture.md)."""
+    bad, checked = [], 0
+    for path in sorted(GAP.rglob("*.py")):
+        rel = path.relative_to(GAP)
+        here = rel.parts[0] if len(rel.parts) > 1 else rel.stem
+        if here == "__init__":
+            continue
+        assert here in _GAP_STAGE, f"gap/{rel}: not in a stage of GAP_STAGES (add it, and to docs/architecture.md)"
+        for line, target in _gap_imports(path):
+            checked += 1
+            if _GAP_STAGE[target] > _GAP_STAGE[here]:
+                bad.append(f"gap/{rel}:{line} ({here}) imports {target}")
+    assert checked > 50, f"only {checked} imports inside gap/ found: the import detection broke"
+    assert not bad, f"imports against the stage order of gap/: {bad}"

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from finkensim.config import Config
 from finkensim.flightlog import FlightLog, FlightLogError, validate
 from finkensim.gap.attribute import effects as fx
-from finkensim.gap.report.honesty import check_plausible, too_little_data
+from finkensim.gap.detect.sufficiency import check_plausible, too_little_data
 from finkensim.gap.detect.limits import range_limits
 from finkensim.gap.model.params import ModelParams
 from finkensim.gap.model.replay import synchronous_pairs
