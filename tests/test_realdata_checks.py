@@ -20,7 +20,7 @@ from finkensim.gap.detect.limits import range_limits
 from finkensim.gap.model.params import ModelParams
 from finkensim.gap.model.replay import synchronous_pairs
 from finkensim.gap.model.replay import GapInputError
-from finkensim.gap.report.write import bin_text, uniform_features
+from finkensim.gap.report.markdown import bin_text, uniform_features
 from finkensim.importing import Recording, RecordingError, build_flight, check_recording, read_csv, write_csv
 
 
