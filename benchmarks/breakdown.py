@@ -23,7 +23,7 @@ from numba import njit
 from finkensim.arena import walls_step_env
 from finkensim.kernels.geometry import nearest_body_distance_within_env
 from finkensim.sensors.imu import imu_env
-from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
+from finkensim.sensors.sonar import N_SONARS, displaced_plates_env, down_env, ideal_env, sonar_env
 from finkensim.swarm import ranging_env
 from finkensim.kernels.cellgrid import engine_grid, env_grid
 from finkensim.world import step_env
@@ -84,7 +84,7 @@ def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp,
             if ideal_only:
                 ideal_env(pos[b], yaw[b], (pa, pb, width, length), sp, (buf, dist, kind, hit), g, env_grid(g, 0))
             else:
-                ultrasonic_env(pos[b], yaw[b], (pa, pb, width, length), sp, (seed, b, r), (buf, dist, kind, hit, slot),
+                sonar_env(pos[b], yaw[b], (pa, pb, width, length), sp, (seed, b, r), (buf, dist, kind, hit, slot),
                                out, g, env_grid(g, 0))
 
 

@@ -133,7 +133,7 @@ class BehaviourConfig(_Section):
 
 @dataclass(frozen=True)
 class SonarConfig(_Section):
-    """Ultrasonic sensors: four horizontal sonars plus the down-facing one (issue: sensor models)."""
+    """Sonars: four horizontal ones plus the down-facing one (issue: sensor models)."""
 
     _section = "sonar"
     enabled: bool = _f(True)

@@ -1,6 +1,6 @@
 """The original FINken attraction–repulsion controller, on the copter's own sonar readings.
 
-Copter n treats each horizontal ultrasonic reading r_j (sonar j = front, left, back, right, mounted at
+Copter n treats each horizontal sonar reading r_j (sonar j = front, left, back, right, mounted at
 yaw m_j relative to the heading) as an object at p_j = r_j · (cos m_j, sin m_j) in its **body frame**
 (x forward, y left) and moves by::
 

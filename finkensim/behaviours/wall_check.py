@@ -1,7 +1,7 @@
 """Wall plausibility check: which sonar readings see a wall rather than a swarm-mate.
 
 Walls look like swarm-mates to the attraction–repulsion controller, so copters stick to walls. The
-report's remedy compares each ultrasonic reading with the virtual-ranging readings (which only tagged
+report's remedy compares each sonar reading with the virtual-ranging readings (which only tagged
 objects — copters, beacons — produce). Wall readings are then dropped from attraction and kept for
 repulsion (:mod:`finkensim.behaviours.attraction`). Everything here uses the copter's own sensors.
 

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..sensors.ultrasonic import N_SONARS
+from ..sensors.sonar import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.threads import run_ranges
 # the closed loop's outlined copies of the per-environment kernels: the same compilations

@@ -27,13 +27,13 @@ from ..sensors.imu import imu_env
 from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.sonar_hold import hold_env
-from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
+from ..sensors.sonar import N_SONARS, displaced_plates_env, down_env, sonar_env
 
 __all__ = ["SenseBuffers", "sense_buffers", "sense_env", "plates_outlined", "sonar_outlined", "hold_outlined", "down_outlined",
            "ranging_outlined", "imu_outlined", "shift_outlined", "delay_outlined"]
 
 plates_outlined = outlined(displaced_plates_env)
-sonar_outlined = outlined(ultrasonic_env)
+sonar_outlined = outlined(sonar_env)
 hold_outlined = outlined(hold_env)
 down_outlined = outlined(down_env)
 ranging_outlined = outlined(ranging_grid_env)
