@@ -51,7 +51,7 @@ test: $(STAMP)
 # Line coverage of the engine's kernels as plain Python (NUMBA_DISABLE_JIT=1, as STUMPY measures its own): the tests of
 # the kernel modules, the engine layers' modules measured; not part of `make test` (≈ 10 min on 2 quiet cores).
 # The figure is quoted in docs/contributing.md.
-COVERAGE_TESTS := tests/test_geometry.py tests/test_rng.py tests/test_trig.py tests/test_ultrasonic.py \
+COVERAGE_TESTS := tests/test_geometry.py tests/test_rng.py tests/test_trig.py tests/test_sonar.py \
 	tests/test_ranging.py tests/test_imu.py tests/test_cellgrid.py tests/test_world.py tests/test_arena.py \
 	tests/test_sonar_hold.py
 COVERAGE_MODULES := finkensim.kernels finkensim.sensors finkensim.swarm finkensim.behaviours finkensim.world \

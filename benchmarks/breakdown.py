@@ -1,7 +1,7 @@
 """Where the time of the full FINken step goes: ``python -m benchmarks.breakdown [--n 10 100]``.
 
 Times each per-environment kernel of the closed loop on its own, single-threaded (a plain loop over
-B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's twins of the
+B environments, ``time.thread_time``, best of 5; compiled with ``error_model="numpy"`` like the engine's outlined copies of the
 kernels, see :mod:`finkensim.swarm.kernel`), on states taken from a real run (the swarm after
 100 steps, so plates swing and copters are spread). Reports µs per env-step and the share of the sum (markdown);
 ``make bench`` puts the N = 10 table in its report, beside the comparison workload's cost on one thread.
@@ -23,7 +23,7 @@ from numba import njit
 from finkensim.arena import walls_step_env
 from finkensim.kernels.geometry import nearest_body_distance_within_env
 from finkensim.sensors.imu import imu_env
-from finkensim.sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ideal_env, ultrasonic_env
+from finkensim.sensors.sonar import N_SONARS, displaced_plates_env, down_env, ideal_env, sonar_env
 from finkensim.swarm import ranging_env
 from finkensim.kernels.cellgrid import engine_grid, env_grid
 from finkensim.world import step_env
@@ -84,7 +84,7 @@ def t_sonar(pos, yaw, theta, plate_a, plate_b, normal, lever, width, length, sp,
             if ideal_only:
                 ideal_env(pos[b], yaw[b], (pa, pb, width, length), sp, (buf, dist, kind, hit), g, env_grid(g, 0))
             else:
-                ultrasonic_env(pos[b], yaw[b], (pa, pb, width, length), sp, (seed, b, r), (buf, dist, kind, hit, slot),
+                sonar_env(pos[b], yaw[b], (pa, pb, width, length), sp, (seed, b, r), (buf, dist, kind, hit, slot),
                                out, g, env_grid(g, 0))
 
 

@@ -26,7 +26,7 @@ def main(argv=None) -> int:
         else:
             import finkensim.sensors.imu
             import finkensim.sensors.ranging
-            import finkensim.sensors.ultrasonic
+            import finkensim.sensors.sonar
             import finkensim.world  # noqa: F401
     from finkensim.compiletime import compile_timer
 

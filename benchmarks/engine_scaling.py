@@ -69,7 +69,7 @@ def copters_in_range(sim, state) -> tuple[float, float]:
     2·(sonar max_range + |offset|)) and its ranging measures (centres within the ranging max_range), environment 0."""
     from scipy.spatial import cKDTree
 
-    from finkensim.sensors.ultrasonic import fire_slots
+    from finkensim.sensors.sonar import fire_slots
 
     cfg = sim.cfg
     pos = np.asarray(state.world.pos[0])

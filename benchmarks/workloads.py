@@ -295,7 +295,7 @@ class FinkenStandIn:
     def __init__(self, n: int, b: int):
         from finkensim.sensors.imu import ImuModel
         from finkensim.sensors.ranging import RangingModel
-        from finkensim.sensors.ultrasonic import SonarModel
+        from finkensim.sensors.sonar import SonarModel
         from finkensim.world import World
 
         self.cfg = finken_config(n, b)
@@ -314,13 +314,13 @@ class FinkenStandIn:
     def run(self, n_steps: int) -> None:
         from finkensim.sensors.imu import imu_from_trajectory
         from finkensim.sensors.ranging import ranging_readings
-        from finkensim.sensors.ultrasonic import ultrasonic_from_trajectory
+        from finkensim.sensors.sonar import sonar_from_trajectory
 
         s0 = self.state
         from finkensim.behaviours.open_loop import RandomWalk
 
         self.state, traj = self.world.rollout(s0, int(n_steps), controller=RandomWalk(self.cfg), record=True)
-        ultrasonic_from_trajectory(traj, self.world.arena, self.sonar, s0.seed, s0.env_ids, s0.step)
+        sonar_from_trajectory(traj, self.world.arena, self.sonar, s0.seed, s0.env_ids, s0.step)
         out = None
         for t in range(int(n_steps)):
             out = ranging_readings(traj.pose[t, :, :, :2], self.ranging.beacons, s0.seed, s0.env_ids, s0.step + t,

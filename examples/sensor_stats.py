@@ -24,7 +24,7 @@ import numpy as np
 from finkensim.config import Config
 from finkensim.scenario import load_scenario, simulate_flight
 from finkensim.sensors.imu import ImuModel, ImuState, imu_step
-from finkensim.sensors.ultrasonic import SonarModel, down_readings, rayleigh_std, ultrasonic_readings
+from finkensim.sensors.sonar import SonarModel, down_readings, rayleigh_std, sonar_readings
 from finkensim.world import World
 
 N_MC = 200_000
@@ -65,7 +65,7 @@ def seed_rule() -> None:
     sp = SonarModel.from_config(cfg)
     pos = np.tile([[[world.arena.width - d, 2.0]]], (N_MC, 1, 1))
     theta = np.zeros((N_MC, world.arena.n_plates))
-    y = ultrasonic_readings(pos, np.zeros((N_MC, 1)), theta, world.arena, sp, 4, np.arange(N_MC), 0)[:, 0, 0]
+    y = sonar_readings(pos, np.zeros((N_MC, 1)), theta, world.arena, sp, 4, np.arange(N_MC), 0)[:, 0, 0]
     half = np.isclose(y, d / 2)
     rest = y[~half]
     s = rayleigh_std(cfg.sonar.sigma)
@@ -86,7 +86,7 @@ def crosstalk_geometry() -> None:
         world = World(cfg)
         sp = SonarModel.from_config(cfg)
         theta = np.zeros((1, world.arena.n_plates))
-        out, ideal, _, _ = ultrasonic_readings(pos, yaw, theta, world.arena, sp, 0, [0], 0, return_ideal=True)
+        out, ideal, _, _ = sonar_readings(pos, yaw, theta, world.arena, sp, 0, [0], 0, return_ideal=True)
         print(f"   schedule {schedule:<12} (slots {n_slots}): front sonars read {out[0, 0, 0]:.3f} m and "
               f"{out[0, 1, 0]:.3f} m; ideal echo off the other body {ideal[0, 0, 0]:.3f} m (1 m − radius)")
 

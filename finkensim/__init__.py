@@ -44,7 +44,7 @@ _API = {
     "diagnose": "finkensim.gap",
     "GapReport": "finkensim.gap",
 }
-_MODULES = ("metrics", "viz", "gap", "sweep", "flightlog", "config", "checks")
+_MODULES = ("metrics", "viz", "gap", "sweep", "flightlog", "config", "determinism")
 
 __all__ = ["__version__", *_API, *_MODULES]
 

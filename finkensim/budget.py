@@ -126,7 +126,7 @@ def episode_arrays(cfg: Config, duration: float | None = None, n_envs: int = 1) 
 
 def log_arrays(T: float, N: int, sonars: int = 0, ranging: bool = False, imu: bool = False) -> dict[str, float]:
     """Bytes of a flight log of T samples of N copters being built (the log and one working copy of each array):
-    ``sonars`` ultrasonic channels per copter, the (T, N, N) ``ranging`` block, the ``imu`` block."""
+    ``sonars`` sonar channels per copter, the (T, N, N) ``ranging`` block, the ``imu`` block."""
     T, N = float(T), float(N)
     out = {"pose (T, N, 3)": T * N * 3 * F8 * 2, "t (T,)": T * F8 * 2}
     if sonars:

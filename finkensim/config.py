@@ -133,7 +133,7 @@ class BehaviourConfig(_Section):
 
 @dataclass(frozen=True)
 class SonarConfig(_Section):
-    """Ultrasonic sensors: four horizontal sonars plus the down-facing one (issue: sensor models)."""
+    """Sonars: four horizontal ones plus the down-facing one (issue: sensor models)."""
 
     _section = "sonar"
     enabled: bool = _f(True)
@@ -191,7 +191,7 @@ class RangingConfig(_Section):
     mixture_file: str = _f("", doc="JSON/NPZ mixture in metres; empty = Parlow's K=100 model shipped with finkensim")
     seed_variance_factor: float = _f(10.0, "", 0.0, 1e6, lo_open=True, doc="seed mode: the script's variance fudge")
     beacons: tuple[tuple[float, float], ...] = _f((), "m", -1e6, 1e6, doc="fixed ranging tags [[x, y], ...]")
-    # radio effects (finkensim.sensors.ranging_radio; each the twin of a gap effect of the same name); defaults: none
+    # radio effects (finkensim.sensors.ranging_radio; each the simulator side of the gap effect of the same name); defaults: none
     bias: float = _f(0.0, "m", -5.0, 5.0, doc="constant offset added to every reading (the gap effect ranging_bias)")
     scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every reading: a clock-rate error (ranging_scale)")
     node_delay: tuple[float, ...] = _f((), "m", -5.0, 5.0, doc="constant delay per node, copters 0..N-1 then "

@@ -61,7 +61,7 @@ def sensor_blocks(cfg: Config, rec: SwarmRecord, seed: int, env_ids, step0: int 
     of one environment (B = 1, T samples) recorded with :func:`flight_record_names`; sample k is step
     ``step0 + k`` of the run keyed by ``seed`` and ``env_ids`` (1,).
 
-    Returns ``ultrasonic`` (T, N, 4) m with ``ultrasonic_yaw``/``ultrasonic_offset``; ``ranging``
+    Returns the sonar readings as the flight-log arrays ``ultrasonic`` (T, N, 4) m (the spec's names) with ``ultrasonic_yaw``/``ultrasonic_offset``; ``ranging``
     (T, N, N) m; ``imu_acc`` (T, N, 2) m/s² and ``imu_gyro`` (T, N) rad/s; each only when its
     ``enabled`` key is true. Extras: ``ultrasonic_down`` (T, N) m (down-facing sonar),
     ``ranging_beacons`` (T, N, M) m and ``beacon_positions`` (M, 2) m when beacons are configured, and,

@@ -143,7 +143,7 @@ class Trajectory:
     theta: np.ndarray
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def step_env(w, b, cmd_v, cmd_w, bodies, dt, work, grid, cells):
     """Advance environment b of the :class:`WorldState` ``w`` by dt s in place: copters move, contacts
     are counted, plates respond.

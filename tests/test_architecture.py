@@ -47,8 +47,8 @@ def _n_params(node) -> int:
 
 
 #: what compiles a Python function with numba: its decorators, and the package's own wrapper that re-jits one
-#: (``kernels/twin.py``)
-COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil", "twin"}
+#: (``kernels/outline.py``)
+COMPILERS = {"njit", "jit", "vectorize", "guvectorize", "cfunc", "stencil", "outlined"}
 
 
 def _callee_name(node) -> str:
@@ -62,7 +62,7 @@ def _callee_name(node) -> str:
 
 def _compiled_functions(tree: ast.Module) -> list:
     """Functions numba compiles: decorated with a :data:`COMPILERS` name, or passed by name to one
-    (``f_twin = twin(f)``, ``njit(cache=True)(f)``)."""
+    (``f_outlined = outlined(f)``, ``njit(cache=True)(f)``)."""
     passed = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and _callee_name(node) in COMPILERS | {""}:
@@ -115,9 +115,9 @@ LAYERS = [
     ("world", "behaviours"),
     ("swarm",),
     ("flightlog", "metrics", "analysis", "default_scenario"),
-    ("scenario", "episode", "checks", "viz", "precompile"),
+    ("scenario", "episode", "determinism", "viz", "precompile"),
     ("sweep", "gap"),
-    ("envs", "tune", "importing", "checkfiles", "datasets", "testing", "plugin_checks"),  # check reads study files and recordings too
+    ("envs", "tune", "importing", "checkfiles", "datasets", "testing", "plugin_checkers"),  # check reads study files and recordings too
     ("cli", "cliargs", "precompile_cli", "gapvalidate_cli"),
 ]
 _LEVEL = {name: i for i, names in enumerate(LAYERS) for name in names}
@@ -155,7 +155,7 @@ def test_no_two_compilations_of_one_function_differ_in_options():
     compile options: two ``njit`` dispatchers of the same ``py_func`` with different code-changing options
     (``parallel``, ``fastmath``, …) share one cache entry, and a warm cache then hands one the other's machine
     code — a ``parallel=True`` kernel silently ran on one thread that way. Re-jitting with the same options (the
-    non-inlined twins of ``inline="always"`` kernels) is fine."""
+    outlined copies of ``inline="always"`` kernels) is fine."""
     import importlib
     import pkgutil
 
@@ -191,9 +191,61 @@ def test_fits_see_the_diagnosis_only_through_the_fit_objective():
     for name in ("fits", "effects", "effects_radio", "objective", "parsimony"):
         path = PACKAGE / "gap" / "attribute" / f"{name}.py"
         for node in ast.walk(_tree(path)):
-            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[-1] == "diagnosis" and name != "parsimony":
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[-1] == "diagnosis":
                 bad.append(f"{_rel(path)}:{node.lineno} imports {node.module}")
             if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "diag"
                     and node.attr.startswith("_") and not node.attr.startswith("__")):
                 bad.append(f"{_rel(path)}:{node.lineno} diag.{node.attr}")
     assert not bad, f"fits reaching past FitObjective: {bad}"
+
+
+#: the stages of gap/ in pipeline order (docs/architecture.md, "The gap diagnosis, by stage"): a module imports only
+#: from its own stage or an earlier one; gap/__init__.py (the package's public names) is above them all
+GAP_STAGES = [("model",), ("detect",), ("attribute",), ("quantify",), ("report",), ("diagnosis", "pipeline", "warmup"),
+              ("validation",)]
+_GAP_STAGE = {name: i for i, names in enumerate(GAP_STAGES) for name in names}
+GAP = PACKAGE / "gap"
+
+
+def _gap_imports(path: Path) -> list[tuple[int, str]]:
+    """(line, stage) of every import of a gap/ module in ``path``: relative at any depth, absolute
+    (``finkensim.gap.…``), at module level or inside a function, ``from .. import diagnosis`` included."""
+    package = list(path.relative_to(PACKAGE).parts[:-1])
+    out = []
+    for node in ast.walk(_tree(path)):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                if node.level - 1 > len(package):
+                    continue
+                base = package[:len(package) - (node.level - 1)] + (node.module.split(".") if node.module else [])
+            elif (node.module or "").startswith("finkensim."):
+                base = node.module.split(".")[1:]
+            else:
+                continue
+            if base[:1] != ["gap"]:
+                continue
+            targets = base[1:2] or [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [a.name.split(".")[2] for a in node.names if a.name.startswith("finkensim.gap.")]
+        else:
+            continue
+        out += [(node.lineno, t) for t in targets if t in _GAP_STAGE]
+    return out
+
+
+def test_gap_imports_follow_the_stages():
+    """Imports inside gap/ flow one way: model ← detect ← attribute ← quantify ← report ← diagnosis, pipeline ←
+    validation; a piece two stages share lives in the earlier one (docs/architecture.md)."""
+    bad, checked = [], 0
+    for path in sorted(GAP.rglob("*.py")):
+        rel = path.relative_to(GAP)
+        here = rel.parts[0] if len(rel.parts) > 1 else rel.stem
+        if here == "__init__":
+            continue
+        assert here in _GAP_STAGE, f"gap/{rel}: not in a stage of GAP_STAGES (add it, and to docs/architecture.md)"
+        for line, target in _gap_imports(path):
+            checked += 1
+            if _GAP_STAGE[target] > _GAP_STAGE[here]:
+                bad.append(f"gap/{rel}:{line} ({here}) imports {target}")
+    assert checked > 50, f"only {checked} imports inside gap/ found: the import detection broke"
+    assert not bad, f"imports against the stage order of gap/: {bad}"

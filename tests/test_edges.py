@@ -15,7 +15,7 @@ from finkensim.arena import Arena
 from finkensim.config import Config, ConfigError
 from finkensim.sensors.ranging import RangingModel, ideal_ranges, ranging_readings
 from finkensim.sensors.sonar_model import SonarModel
-from finkensim.sensors.ultrasonic import ideal_ultrasonic
+from finkensim.sensors.sonar import ideal_sonar
 from finkensim.testing import strategies as fst
 
 W, L = 3.0, 4.0
@@ -32,7 +32,7 @@ def test_one_copter_axis_aligned_reads_the_wall_distances(x, y, heading):
     """A lone copter facing along an axis: each sonar reads its distance to the wall it faces, minus the sonar
     offset (closed form; front, left, back, right turn with the heading)."""
     cfg, arena, sp = rigid()
-    dist, kind, _ = ideal_ultrasonic(np.array([[[x, y]]]), np.array([[heading]]), np.zeros((1, arena.n_plates)),
+    dist, kind, _ = ideal_sonar(np.array([[[x, y]]]), np.array([[heading]]), np.zeros((1, arena.n_plates)),
                                      arena, sp)
     walls = {0.0: W - x, math.pi / 2: L - y, math.pi: x, -math.pi / 2: y}  # distance along each world direction
     for k, mount in enumerate((0.0, math.pi / 2, math.pi, -math.pi / 2)):
@@ -51,7 +51,7 @@ def test_ray_parallel_to_and_grazing_a_wall(eps, x):
     wall at the body's half-width and must hit the east wall, not the wall it grazes."""
     cfg, arena, sp = rigid()
     r = cfg.copters.radius
-    dist, kind, _ = ideal_ultrasonic(np.array([[[x, r + eps]]]), np.array([[0.0]]), np.zeros((1, arena.n_plates)),
+    dist, kind, _ = ideal_sonar(np.array([[[x, r + eps]]]), np.array([[0.0]]), np.zeros((1, arena.n_plates)),
                                      arena, sp)
     assert dist[0, 0, 0] == pytest.approx(min(W - x - sp.offset, sp.max_range), abs=1e-9)
     assert dist[0, 0, 3] == pytest.approx(r + eps - sp.offset, abs=1e-9)  # right sonar: the grazed wall itself
@@ -64,7 +64,7 @@ def test_coincident_and_overlapping_bodies_give_finite_readings(x, y, gap, yaw):
     finite number within [0, max_range]; the ranging truth is their centre distance."""
     cfg, arena, sp = rigid(2)
     pos = np.array([[[x, y], [min(x + gap, W - 0.3), y]]])
-    dist, kind, _ = ideal_ultrasonic(pos, np.array([[yaw, -yaw]]), np.zeros((1, arena.n_plates)), arena, sp)
+    dist, kind, _ = ideal_sonar(pos, np.array([[yaw, -yaw]]), np.zeros((1, arena.n_plates)), arena, sp)
     assert np.all(np.isfinite(dist)) and np.all((dist >= 0) & (dist <= sp.max_range))
     true = ideal_ranges(pos, np.zeros((0, 2)), 2.5)
     assert true[0, 0, 1] == pytest.approx(pos[0, 1, 0] - pos[0, 0, 0], abs=1e-12)
@@ -149,7 +149,7 @@ def test_ideal_sonar_equals_an_independent_closed_form(n, data):
     r = cfg.copters.radius
     state = data.draw(fst.world_states(cfg, n_envs=1, separated=True, clearance=1e-3, moving=False, plates=False))
     pos, yaw = state.pos[0], state.yaw[0]
-    dist, _, _ = ideal_ultrasonic(pos[None], yaw[None], np.zeros((1, arena.n_plates)), arena, sp)
+    dist, _, _ = ideal_sonar(pos[None], yaw[None], np.zeros((1, arena.n_plates)), arena, sp)
     want = _exact_sonar(pos, yaw, np.asarray(sp.mount_yaw), sp.offset, r, sp.max_range)
     close = np.isclose(dist[0], want, atol=1e-9)
     for nn, k in zip(*np.nonzero(~close)):  # a mismatch is only allowed on a tangent ray (grazing a body)

@@ -20,7 +20,7 @@ from finkensim.config import Config
 from finkensim.copters import update_contacts_env
 from finkensim.kernels.cellgrid import GridParams, engine_grid, env_grid, grid_params
 from finkensim.sensors.ranging import RangingModel
-from finkensim.swarm.sense import ranging_twin
+from finkensim.swarm.sense import ranging_outlined
 from finkensim.swarm import SwarmSim
 from finkensim.swarm.state import concat_records
 from finkensim.world import World
@@ -90,10 +90,10 @@ def test_contacts_on_the_grid_equal_the_brute_force(scene):
 
 @njit(cache=True)
 def _ranging(pos, beacons, p, g, out):
-    # the engine's compiled ranging_grid_env (its twin, with the argument types swarm_env passes): the code under
+    # the engine's compiled ranging_grid_env (its outlined copy, with the argument types swarm_env passes): the code under
     # test, compiled once for the engine and this test (inlining it here cost ≈ 25 s of cold compile)
     for b in range(pos.shape[0]):
-        ranging_twin(pos[b], np.zeros(pos.shape[1]), beacons, (np.int64(7), np.int64(b), np.int64(3)), p, out[b], g,
+        ranging_outlined(pos[b], np.zeros(pos.shape[1]), beacons, (np.int64(7), np.int64(b), np.int64(3)), p, out[b], g,
                      env_grid(g, b), True)
 
 

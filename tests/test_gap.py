@@ -29,7 +29,7 @@ from finkensim.kernels.rng import STREAM_EFFECT, counter_key
 from finkensim.sensors.sonar_kernels import measured_reading
 from finkensim.sensors.sonar_model import (CROSSTALK_GEOMETRIC, CROSSTALK_OFF, SCHEDULE_SIMULTANEOUS, sonar_scalars,
                                            wall_geometry)
-from finkensim.sensors.ultrasonic import SonarModel, ideal_ultrasonic
+from finkensim.sensors.sonar import SonarModel, ideal_sonar
 from finkensim.sensors.tracking import draw_poses
 from tests.naive import gap as naive
 from tests.stats import assert_above_se, assert_mean_within_se, assert_proportion_within_se, se_mean
@@ -184,7 +184,7 @@ def test_sonar_draws_without_pose_noise_equal_the_simulator_and_the_crosstalk_re
     sp = sm._replace(offset=0.0, max_range=3.0, schedule=SCHEDULE_SIMULTANEOUS, n_slots=1)
     rp.sonar_draws(rp.ReplayPoses(pos, yaw, theta, np.zeros_like(theta)), wall_geometry(arena), sp, 1.0, times,
                    rp.PoseNoise(0.0, 0.0, 0, 0), 1, np.ones((K, N, S), bool), dist, kind, xt)
-    d_sim, k_sim, _ = ideal_ultrasonic(pos, yaw, theta, arena, sm)
+    d_sim, k_sim, _ = ideal_sonar(pos, yaw, theta, arena, sm)
     np.testing.assert_array_equal(dist[..., 0], d_sim)
     np.testing.assert_array_equal(kind[..., 0], k_sim)
     for k in range(K):

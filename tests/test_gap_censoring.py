@@ -2,7 +2,7 @@
 
 - The censoring (threshold-weighted CRPS) finds a tool's range limits and no-echo sentinel from the log and
   makes every way of recording a lost echo score alike; the gap stays zero-mean under the model.
-- The shrink of :mod:`finkensim.gap.quantify.shrink` never exceeds 1, and an over-dispersed fit scores below the right
+- The shrink of :mod:`finkensim.gap.attribute.shrink` never exceeds 1, and an over-dispersed fit scores below the right
   effect even when its calibration gap is zero.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from scipy import stats
 
 from finkensim.gap.detect.censoring import Censoring, atoms, detect_censoring
 from finkensim.gap.model.scoring import ensemble_terms
-from finkensim.gap.quantify.shrink import ShrinkMeter
+from finkensim.gap.attribute.shrink import ShrinkMeter
 from tests.stats import assert_above_se, assert_mean_within_se, assert_within_se, se_bootstrap, se_mean
 
 MAX, MIN, SIGMA = 3.0, 0.2, 0.05

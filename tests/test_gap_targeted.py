@@ -15,7 +15,7 @@ import pytest
 from finkensim.gap import Diagnosis, run_diagnosis
 from finkensim.gap.attribute import targeted as S
 from finkensim.gap.diagnosis import FitResult
-from finkensim.gap.report.write import markdown
+from finkensim.gap.report.markdown import markdown
 from finkensim.gap.validation.cases import Case, _post_latency, generate
 from finkensim.config import load_config
 

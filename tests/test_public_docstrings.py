@@ -17,7 +17,7 @@ CONTRACTS = {
     "finkensim.gap.attribute.effects.Effect": ("start",),
     "finkensim.gap.attribute.effects.Param": (),
     "finkensim.gap.attribute.effects.register": (),
-    "finkensim.gap.diagnosis.FitResult": (),
+    "finkensim.gap.attribute.fit_result.FitResult": (),
     "finkensim.gap.diagnosis.Diagnosis": ("fit", "score_heldout", "objective", "fit_group"),
     "finkensim.gap.attribute.objective.FitObjective": ("objective", "fit_group"),
     "finkensim.flightlog.npz.save": (),

@@ -15,12 +15,12 @@ from hypothesis import strategies as st
 from finkensim.config import Config
 from finkensim.flightlog import FlightLog, FlightLogError, validate
 from finkensim.gap.attribute import effects as fx
-from finkensim.gap.report.honesty import check_plausible, too_little_data
+from finkensim.gap.detect.sufficiency import check_plausible, too_little_data
 from finkensim.gap.detect.limits import range_limits
 from finkensim.gap.model.params import ModelParams
 from finkensim.gap.model.replay import synchronous_pairs
 from finkensim.gap.model.replay import GapInputError
-from finkensim.gap.report.write import bin_text, uniform_features
+from finkensim.gap.report.markdown import bin_text, uniform_features
 from finkensim.importing import Recording, RecordingError, build_flight, check_recording, read_csv, write_csv
 
 

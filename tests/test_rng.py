@@ -20,7 +20,7 @@ from tests.stats import assert_mean_within_se, assert_within_se
 I64 = st.integers(-(2**63), 2**63 - 1)
 SEED = st.integers(0, 2**63 - 1)  # simulation.seed's allowed range
 SMALL = st.integers(-(2**31), 2**31)  # env/step/copter/stream as they occur, negative included
-NORMAL_ATOL = 3e-14  # kernel normal vs libm twin, see test_normal_matches_naive
+NORMAL_ATOL = 3e-14  # kernel normal vs its libm reference, see test_normal_matches_naive
 U64 = st.integers(0, 2**64 - 1)
 
 
@@ -61,7 +61,7 @@ def test_uniform_matches_naive(key, index):
 @settings(max_examples=200, deadline=None)
 @given(U64, st.integers(-(2**62), 2**62 - 1))
 def test_normal_matches_naive(key, index):
-    # the uniforms are bit-identical (above); the twin takes libm's cosine, the kernel the polynomial sine of
+    # the uniforms are bit-identical (above); the reference takes libm's cosine, the kernel the polynomial sine of
     # kernels/trig.py: |Δcos| ≤ 2e-15 (its bound) + 1e-15 (rounding of the argument) times R ≤ 8.6 (u ≥ 2^-53)
     np.testing.assert_allclose(rng.normal(np.uint64(key), index), naive.normal(np.uint64(key), index),
                                rtol=1e-13, atol=NORMAL_ATOL)

@@ -10,7 +10,7 @@ from finkensim.config import ConfigError, config_from_dict
 from finkensim.scenario import load_scenario, simulate_flight
 from finkensim.sensors.imu import ImuModel, ideal_imu, imu_from_trajectory
 from finkensim.sensors.ranging import RangingModel, ranging_readings
-from finkensim.sensors.ultrasonic import SonarModel, ultrasonic_from_trajectory
+from finkensim.sensors.sonar import SonarModel, sonar_from_trajectory
 from finkensim.swarm import SwarmSim
 
 DURATION = 3.0  # s: 61 samples
@@ -59,7 +59,7 @@ def test_recorded_sensors_equal_the_sensor_models_along_the_trajectory(flight):
     """Sensor blocks recorded in the closed loop = the batched sensor functions replayed on the trajectory."""
     log, traj, world = flight
     cfg, env_ids = world.cfg, np.array([0])
-    sonar, ideal, hit, _ = ultrasonic_from_trajectory(traj, world.arena, SonarModel.from_config(cfg), SEED, env_ids, 0,
+    sonar, ideal, hit, _ = sonar_from_trajectory(traj, world.arena, SonarModel.from_config(cfg), SEED, env_ids, 0,
                                                       return_ideal=True)
     np.testing.assert_array_equal(log.ultrasonic, sonar[:, 0])
     np.testing.assert_array_equal(log.extras["ultrasonic_ideal"], ideal[:, 0])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from finkensim.behaviours.attraction import settle_distance, settle_reading
-from finkensim.checks import first_difference
+from finkensim.determinism import first_difference
 from finkensim.config import Config, ConfigError
 from finkensim.sensors.ranging import RangingModel, ranging_readings
 from finkensim.behaviours.open_loop import RandomWalk

@@ -148,7 +148,7 @@ def test_sensor_models_are_complete_records(model):
 def test_sensor_models_run_in_their_kernels(kind, data):
     from finkensim.sensors.imu import imu_step
     from finkensim.sensors.ranging import ranging_readings
-    from finkensim.sensors.ultrasonic import ultrasonic_readings
+    from finkensim.sensors.sonar import sonar_readings
     from finkensim.world import World
 
     cfg = data.draw(fst.scenarios(sections=("arena", "copters", kind), fixed={f"{kind}.enabled": True}))
@@ -156,7 +156,7 @@ def test_sensor_models_run_in_their_kernels(kind, data):
     state = data.draw(fst.world_states(cfg))
     B, N = state.n_envs, state.n_copters
     if kind == "sonar":
-        out = ultrasonic_readings(state.pos, state.yaw, state.theta, World(cfg).arena, model, 0, state.env_ids, 0)
+        out = sonar_readings(state.pos, state.yaw, state.theta, World(cfg).arena, model, 0, state.env_ids, 0)
         assert out.shape == (B, N, 4)
     elif kind == "ranging":
         out = ranging_readings(state.pos, np.zeros((0, 2)), 0, state.env_ids, 0, model)

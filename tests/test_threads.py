@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from numba import njit
 
-from finkensim.checks import first_difference
+from finkensim.determinism import first_difference
 from finkensim.config import Config
 from finkensim.kernels import threads
 from finkensim.kernels.threads import run_ranges, split_ranges

@@ -11,7 +11,7 @@ from hypothesis.extra import numpy as hnp
 
 from finkensim.behaviours.open_loop import RandomWalk, hover
 from finkensim.behaviours.random_walk import random_walk_env
-from finkensim.checks import check_determinism, first_difference
+from finkensim.determinism import check_determinism, first_difference
 from finkensim.config import Config, ConfigError
 from finkensim.copters import wrap_angle
 from finkensim.testing import strategies as fst

@@ -1,6 +1,6 @@
 """The original FINken attraction–repulsion controller, on the copter's own sonar readings.
 
-Copter n treats each horizontal ultrasonic reading r_j (sonar j = front, left, back, right, mounted at
+Copter n treats each horizontal sonar reading r_j (sonar j = front, left, back, right, mounted at
 yaw m_j relative to the heading) as an object at p_j = r_j · (cos m_j, sin m_j) in its **body frame**
 (x forward, y left) and moves by::
 
@@ -97,7 +97,7 @@ def random_target_env(seed, env_id, step, n, redraw_steps, target_distance):
     return target_distance * np.cos(phi), target_distance * np.sin(phi)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def attraction_env(sonar_b, wall_b, seed, env_id, step, attraction, cmd_v, cmd_w):
     """Commands of one environment. sonar_b (N, 4) m, wall_b (N, 4) bool → cmd_v (N, 2) m/s body frame,
     cmd_w (N,) rad/s (always 0)."""
@@ -133,7 +133,7 @@ def attraction_env(sonar_b, wall_b, seed, env_id, step, attraction, cmd_v, cmd_w
         cmd_w[n] = 0.0
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def body_to_world_env(yaw_b, v_body, v_world):
     """Rotate body-frame vectors (N, 2) by the heading yaw_b (N,) rad into the world frame (N, 2)."""
     for n in range(yaw_b.shape[0]):

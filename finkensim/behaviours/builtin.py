@@ -2,7 +2,7 @@
 ``hover``, ``random_walk`` (:mod:`.random_walk`) and ``attraction_repulsion`` (:mod:`.attraction`).
 
 Their ``commands`` kernels call the per-environment kernels of their modules (``inline="always"``, so each is
-compiled once into its ``commands``) with the numpy error model of the engine's kernels (:mod:`finkensim.kernels.twin`).
+compiled once into its ``commands``) with the numpy error model of the engine's kernels (:mod:`finkensim.kernels.outline`).
 """
 from __future__ import annotations
 

@@ -26,7 +26,7 @@ class RandomWalkParams(NamedTuple):
                    np.deg2rad(behaviour.yaw_rate_deg), width, length)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def random_walk_env(pos, seed, env_id, step, random_walk, cmd_v, cmd_w):
     """Commands for one environment. pos (N, 2) m → writes cmd_v (N, 2) m/s and cmd_w (N,) rad/s."""
     epoch = step // random_walk.redraw_steps

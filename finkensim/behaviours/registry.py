@@ -16,7 +16,7 @@ every environment::
   (N,) rad/s: the outputs; write every entry at every call.
 
 The built-ins (:mod:`.builtin`) are registered through :func:`register_behaviour` like a user's; the recipe is in
-``docs/architecture.md`` ("Add a behaviour") and :func:`finkensim.plugin_checks.check_behaviour` checks one.
+``docs/architecture.md`` ("Add a behaviour") and :func:`finkensim.plugin_checkers.check_behaviour` checks one.
 """
 from __future__ import annotations
 

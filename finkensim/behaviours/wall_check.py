@@ -1,7 +1,7 @@
 """Wall plausibility check: which sonar readings see a wall rather than a swarm-mate.
 
 Walls look like swarm-mates to the attraction–repulsion controller, so copters stick to walls. The
-report's remedy compares each ultrasonic reading with the virtual-ranging readings (which only tagged
+report's remedy compares each sonar reading with the virtual-ranging readings (which only tagged
 objects — copters, beacons — produce). Wall readings are then dropped from attraction and kept for
 repulsion (:mod:`finkensim.behaviours.attraction`). Everything here uses the copter's own sensors.
 
@@ -206,7 +206,7 @@ def per_reading_env(sonar_b, ranging_b, wall_check, fail_out, near):
             fail_out[n, k] = reading_fails(sonar_b[n, k], ranging_b[n], n, wall_check, cells[4], n_cand, N)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def dead_reckon_env(acc_b, gyro_b, dt, dr_pos, dr_vel, dr_yaw):
     """Advance the dead reckoning of one environment by one IMU sample, in place.
 
@@ -252,7 +252,7 @@ def sequence_env(fail_b, dr_pos, dr_yaw, wall_check, count, wall, anchor, onsets
                     onsets[n] += 1
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def wall_check_env(sonar_b, ranging_b, wall_check, fail_buf, memory, b, near):
     """The configured check (``wall_check.mode``) for environment b; updates its part of ``memory`` (a
     :class:`BehaviourState`: fail counters, flags, anchors, counters; reads the dead reckoning) and its wall flags

@@ -4,7 +4,7 @@
 A task is an object with the :class:`Task` contract: ``reset(ctx, pos)`` (called at every reset, all B environments
 at once) and ``reward(ctx, world) -> (B,) float64`` (called after every step with the new
 :class:`~finkensim.world.WorldState`); it must be deterministic and pickle
-(:func:`finkensim.plugin_checks.check_task` checks one). ``ctx`` is a :class:`TaskContext` (arena size, copter radius, dt).
+(:func:`finkensim.plugin_checkers.check_task` checks one). ``ctx`` is a :class:`TaskContext` (arena size, copter radius, dt).
 The reward is a team reward: every copter of an environment shares it (the PettingZoo env gives it
 to each agent). Register your own with :func:`register_task`::
 

@@ -138,7 +138,7 @@ class FlightLog:
     copter_ids : ndarray of str, shape (N,)
         Unique copter names.
     ultrasonic : ndarray, shape (T, N, S), optional
-        Sonar readings, m, measured from the sonar; NaN = no reading.
+        The flight-log array ``ultrasonic`` (the spec's name): sonar readings, m, measured from the sonar; NaN = no reading.
     ultrasonic_yaw : ndarray, shape (S,), optional
         Mounting yaw relative to the heading, rad (front 0, left +pi/2, back pi, right -pi/2); present
         exactly when ``ultrasonic`` is.

@@ -19,7 +19,6 @@ The selection and the verdict (``docs/formats/gap-report.md``) are the stages of
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -34,54 +33,12 @@ from .detect.censoring import detect_censoring
 from .attribute.fits import nelder_mead
 from .detect.limits import range_limits
 from .detect.locations import locate_gap
-from .model.params import ModelParams
+from .attribute.fit_result import FitResult
+from .model.params import SENSORS, ModelParams
 from .model.predictive import LRU, ImuTable, RangingTable, SonarTable
 from .model.replay import GapInputError, prepare_flights
 from .model.scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
 from .detect.stats import BlockBootstrap
-
-SENSORS = ("ultrasonic", "ranging", "imu")
-
-
-@dataclass
-class FitResult:
-    """One effect fitted by :meth:`Diagnosis.fit` and, once scored, by :meth:`Diagnosis.score_heldout`.
-
-    Scores and gaps are per reading, normalised by each sensor's scale and averaged over the sensors (lower
-    is better); NaN until scored.
-
-    Parameters
-    ----------
-    name : str
-        The effect's name.
-    values : dict
-        Fitted parameter values (name → value, in the parameters' units).
-    params : ModelParams
-        The model with the effect added at ``values``.
-    score_train : float
-        Mean CRPS on the training rows (the fit's objective).
-    score_heldout : float
-        Mean CRPS on the held-out rows.
-    gap_train : float
-        Mean gap on the training rows.
-    gap_heldout : float
-        Mean gap on the held-out rows.
-    rows_score : dict
-        Sensor → per-row held-out CRPS, shape (n,).
-    rows_gap : dict
-        Sensor → per-row held-out gap, shape (n,).
-    """
-
-    name: str
-    values: dict
-    params: ModelParams
-    score_train: float
-    score_heldout: float = math.nan
-    gap_train: float = math.nan
-    gap_heldout: float = math.nan
-    rows_score: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out score
-    rows_gap: dict = field(default_factory=dict, repr=False)  # sensor → per-row held-out gap
-
 
 def check_heldout(names: list[str], heldout: list[str] | None) -> None:
     """Raise :class:`GapInputError` unless ``heldout`` (flight names, or None/empty for the default split) names

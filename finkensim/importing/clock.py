@@ -4,7 +4,7 @@ The sonar readings of a moving swarm change as the copters move: a reading match
 tracked poses only at the right time. For a candidate offset δ, every reading taken at sensor time τ is compared
 with the ideal reading at tracking time τ + δ — the distance from that sonar (pose interpolated, mounting yaw and
 offset applied) to the nearest wall or copter, computed by the simulator's own ray cast
-(:func:`finkensim.sensors.ultrasonic.ideal_ultrasonic`, rigid walls) — through a robust loss
+(:func:`finkensim.sensors.sonar.ideal_sonar`, rigid walls) — through a robust loss
 ``mean(min(|reading − ideal|, 0.25 m))`` (cross-talk and lost echoes cost at most 0.25 m each). Without sonars the
 ranging readings are compared with the distance between the tracked copters instead.
 
@@ -98,7 +98,7 @@ def _sonar_ideal(ch, poses, rows, geometry):
     from ..arena import Arena
     from ..config import load_config
     from ..sensors.sonar_model import SonarModel
-    from ..sensors.ultrasonic import ideal_ultrasonic
+    from ..sensors.sonar import ideal_sonar
 
     W, L = geometry["arena"]
     cfg = geometry.get("config")
@@ -121,7 +121,7 @@ def _sonar_ideal(ch, poses, rows, geometry):
             theta = theta_grid[np.clip(np.searchsorted(grid, t + delta), 0, grid.size - 1)]
         else:
             theta = np.zeros((rows.size, arena.n_plates))
-        dist, _, _ = ideal_ultrasonic(np.ascontiguousarray(p[..., :2]), np.ascontiguousarray(p[..., 2]),
+        dist, _, _ = ideal_sonar(np.ascontiguousarray(p[..., :2]), np.ascontiguousarray(p[..., 2]),
                                       np.ascontiguousarray(theta), arena, model)
         return dist[k, copter, slot]
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
-from .twin import python_function
+from .outline import python_function
 
 INF = np.inf
 

@@ -1,6 +1,6 @@
 """Ray casting against the arena: displaced wall plates, the rigid net backstop, and copter circles.
 
-One implementation serves every caller: the sonar sensor (:mod:`finkensim.sensors.ultrasonic`), the
+One implementation serves every caller: the sonar sensor (:mod:`finkensim.sensors.sonar`), the
 gap replay (:mod:`finkensim.gap.model.replay`) and the benchmarks. Rays are unit directions from an origin
 (m); a hit is the distance t (m) along the ray and a kind (``HIT_WALL`` plate or net, ``HIT_COPTER``).
 

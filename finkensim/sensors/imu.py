@@ -140,7 +140,7 @@ def _turn_on_batch(seed, env_ids, step, acc_spread, gyro_spread, bias):
             bias[b, n, 2] = gyro_spread * normal(key, TURN_ON_INDEX + 2)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def imu_env(acc_world, yaw, yaw_rate, bias, params, seed, env_id, step, out_acc, out_gyro):
     """IMU readings of one environment at one step, in place.
 

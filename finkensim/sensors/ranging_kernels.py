@@ -78,7 +78,7 @@ class RangingParams(NamedTuple):
     Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]``) and call
     :func:`reading_rule`: numba does not always elide the reference counting of arrays handed to an inlined
     function, and each count is an atomic increment and decrement. With the record passed per reading (and a
-    compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading. The compiled twins that
+    compiled, not inlined, ``seed`` branch) that cost ≈ 33 ns of a 60 ns mixture reading. The outlined copies that
     run these loops (``error_model="numpy"``, see :mod:`finkensim.swarm.kernel`) and an inlined
     :func:`seed_reading` leave no count per reading (seen by sampling the callers of ``NRT_incref`` under gdb);
     inlining ``seed_reading`` costs ≈ 1.5 s of cold compile of ``ranging_grid_env``.
@@ -288,7 +288,7 @@ def ranging_reach(max_range):
     return max_range * (1.0 + 1e-9) if max_range < 1e300 else np.inf
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def ranging_grid_env(pos_b, yaw_b, beacons, counter, ranging, out, grid, cells, fill=True):
     """:func:`ranging_env` with the copter pairs found on a cell grid when ``grid.on``: the same readings, bit for bit;
     counter = (seed, env, step) of its random numbers.

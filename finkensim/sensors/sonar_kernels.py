@@ -1,6 +1,6 @@
-"""Per-environment sonar kernels: the one implementation of the ultrasonic sensor model.
+"""Per-environment sonar kernels: the one implementation of the sonar model.
 
-Every caller — the simulator's batched functions (:mod:`finkensim.sensors.ultrasonic`), the compiled
+Every caller — the simulator's batched functions (:mod:`finkensim.sensors.sonar`), the compiled
 closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.model.replay`,
 :mod:`finkensim.gap.model.predictive`) — computes sonar readings with these functions, fed by the same
 :class:`~finkensim.sensors.sonar_model.SonarModel` record:
@@ -12,13 +12,13 @@ closed loop (:mod:`finkensim.swarm`) and the gap replay (:mod:`finkensim.gap.mod
   :func:`crosstalk_path` (shortest emitter → receiver path heard by a sonar);
 - the error model of one reading: :func:`measured_reading` (echo error, constant and geometric
   cross-talk, clamp), built from :func:`echo_reading` and :func:`clamp_reading`;
-- :func:`ultrasonic_env`, :func:`down_env`: one environment's measured readings.
+- :func:`sonar_env`, :func:`down_env`: one environment's measured readings.
 
 All are ``inline="always"`` numba functions of arrays, numbers and the model record, so compiled loops
 can call them with work buffers allocated once. The functions called once per ray or reading take the model's
 :class:`~finkensim.sensors.sonar_model.SonarScalars` (any record with the scalar fields works; the model itself
 too, at the cost of reference-counting its arrays on every call). The model, the random-number layout and the units
-are documented in :mod:`finkensim.sensors.ultrasonic`. Horizontal sonars: S = ``sonar.mount_yaw.shape[0]``
+are documented in :mod:`finkensim.sensors.sonar`. Horizontal sonars: S = ``sonar.mount_yaw.shape[0]``
 (4 in the simulator).
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, DOWN_SONAR, E
 
 __all__ = ["shifted_plates_env", "displaced_plates_env", "sonar_poses_env", "sonar_pose", "sonar_hit", "store_ideal", "ideal_env", "fire_slot",
            "fire_slots_env", "sonar_spread", "crosstalk_path", "echo_error", "echo_reading", "clamp_reading", "measured_reading",
-           "ultrasonic_env", "down_env"]
+           "sonar_env", "down_env"]
 
 #: Uniform index (inside sonar k's block 8k … 8k + 7 of a STREAM_SONAR cell) of the coin that decides
 #: whether a receiver in geometric cross-talk position hears the emitter (drawn only when the model's
@@ -67,7 +67,7 @@ def shifted_plates_env(theta_b, plate_a, plate_b, normal_, lever, gain, pa_out, 
         pb_out[s, 1] = plate_b[s, 1] + sh * normal_[s, 1]
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def displaced_plates_env(theta_b, plate_a, plate_b, normal_, lever, pa_out, pb_out):
     """Plate surfaces at flight height for one environment: theta_b (S,) rad → pa_out, pb_out (S, 2) m,
     each plate shifted along its inward normal by lever · sin θ (as ``Arena.plate_surfaces``)."""
@@ -80,7 +80,7 @@ def sonar_poses_env(pos_b, yaw_b, sonar, sonar_buf):
 
     The heading is the copter's (cos, sin) of its yaw rotated by the mount's (one sine and cosine per copter and per
     mount, not per sonar): within 10⁻¹⁵ + 2.3·10⁻¹⁶·|yaw + mount| of (cos ψ, sin ψ) of the float sum ψ (the sum's
-    own rounding is the second term; ``tests/test_ultrasonic.py`` checks the bound), i.e. < 10⁻¹⁵ m of a 3 m ray.
+    own rounding is the second term; ``tests/test_sonar.py`` checks the bound), i.e. < 10⁻¹⁵ m of a 3 m ray.
     """
     mount_yaw = sonar.mount_yaw
     offset = sonar.offset
@@ -320,7 +320,7 @@ def echo_reading(d, echo, key, k, sonar, err=None):
     """Echo reading (m, unclamped) of sonar k for true distance d; ``echo`` False → max_range exactly.
 
     An echo reads range_scale · d + bias plus the error of ``sonar.error`` (:func:`echo_error`: random numbers of
-    block k of ``key``, see :mod:`finkensim.sensors.ultrasonic`), or plus ``err`` m when given (that error drawn
+    block k of ``key``, see :mod:`finkensim.sensors.sonar`), or plus ``err`` m when given (that error drawn
     beforehand, e.g. once for many evaluations of other parameters).
     """
     if not echo:
@@ -366,8 +366,8 @@ def measured_reading(d, echo, path, key, k, sonar, err=None):
     return clamp_reading(y, sonar)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
-def ultrasonic_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
+def sonar_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
     """Measured horizontal readings of one environment → out (N, S) m, in [min_range, max_range].
 
     Same geometry arguments and grid as :func:`ideal_env`; work = (sonar_buf, dist, kind, hit, slot): its work
@@ -412,7 +412,7 @@ def ultrasonic_env(pos_b, yaw_b, walls, sonar, counter, work, out, grid, cells):
         correct_readings_env(out, dist, kind, sonar.correction, scalars, counter)
 
 
-@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.twin
+@njit(cache=True, inline="always", error_model="numpy")  # why: finkensim.kernels.outline
 def down_env(alt_b, sonar, seed, env_id, step, out):
     """Down-sonar readings of one environment: true altitude alt_b (N,) m → out (N,) m (clamped)."""
     scalars = sonar_scalars(sonar)

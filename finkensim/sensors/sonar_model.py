@@ -1,10 +1,10 @@
-"""The sonar model record: :class:`SonarModel` (every parameter of the ultrasonic sensors in SI units,
+"""The sonar model record: :class:`SonarModel` (every parameter of the sonars in SI units,
 as the kernels take it), its integer codes, and, re-exported from :mod:`finkensim.arena`, :class:`WallGeometry` (the arena as the kernels see it).
 
 Built once from a config (:meth:`SonarModel.from_config`); the simulator and the gap diagnosis both pass
 this record to the same kernels (:mod:`finkensim.sensors.sonar_kernels`), and the diagnosis expresses
 candidate effects as changes of its fields (``model._replace(sigma=...)``). The physics is described in
-:mod:`finkensim.sensors.ultrasonic`.
+:mod:`finkensim.sensors.sonar`.
 """
 from __future__ import annotations
 

@@ -9,7 +9,7 @@
 
 Each step k (the state after k steps, ``WorldState.step``), for every environment:
 
-1. **sense** — horizontal sonars (:func:`~finkensim.sensors.ultrasonic.ultrasonic_env` on the plates
+1. **sense** — horizontal sonars (:func:`~finkensim.sensors.sonar.sonar_env` on the plates
    displaced by their current angles), the down sonar, virtual ranging to every other copter and beacon,
    and the IMU (reading the acceleration of the step that ended at k; its bias state advances). Every
    sensor uses exactly the random numbers of its batched function at step k (same keys, same indices),
@@ -28,7 +28,7 @@ per environment, no Python per step). Besides the sensor readings and commands i
 before each step (pose, velocity, acceleration, yaw rate, plate angles) and the sonars' error-free
 distances and hit types (:data:`RECORDABLE`), so a flight log needs nothing else.
 :meth:`SwarmSim.step` is the same step through the batched Python-facing functions
-(``ultrasonic_readings``, ``down_readings``, ``ranging_readings``, ``imu_step``,
+(``sonar_readings``, ``down_readings``, ``ranging_readings``, ``imu_step``,
 :func:`~finkensim.behaviours.wall_check.wall_check`, :func:`~finkensim.behaviours.attraction.attraction_repulsion`,
 ``World.step``); both give identical results bit for bit (tested; ``rollout(..., python=True)`` runs the
 per-step path), and a result depends only on (seed, environment index, step, copter).

@@ -21,11 +21,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..sensors.ultrasonic import N_SONARS
+from ..sensors.sonar import N_SONARS
 from ..kernels.cellgrid import engine_grid, env_grid, no_grid_buffers
 from ..kernels.threads import run_ranges
-# the closed loop's compiled twins of the per-environment kernels: the same compilations
-from .kernel import body_to_world_twin, step_twin
+# the closed loop's outlined copies of the per-environment kernels: the same compilations
+from .kernel import body_to_world_outlined, step_outlined
 from .sense import SenseBuffers, sense_buffers, sense_env
 from .state import NO_RANGING_ROWS, SwarmState, run_spec
 
@@ -56,8 +56,8 @@ def _control_env(b, state, run, cmd_body, obs, models, grid, work):
     cells = env_grid(grid, b) if grid.on else no_grid
     world = state.world
     if run.n_steps == 1:
-        body_to_world_twin(world.yaw[b], cmd_body[b], cmd_v)
-        step_twin(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt, (dist_buf, gap_buf),
+        body_to_world_outlined(world.yaw[b], cmd_body[b], cmd_v)
+        step_outlined(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt, (dist_buf, gap_buf),
                   grid, cells)
     # environment b's readings in obs, the chunk's scratch arrays around them
     buf = SenseBuffers(obs.sonar[b], s.sonar_ideal, s.sonar_hit, s.sonar_down, obs.ranging[b], obs.imu_acc[b],

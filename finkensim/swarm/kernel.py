@@ -2,8 +2,8 @@
 
 :func:`swarm_rollout` splits the environments over numba's threads (the behaviour's :func:`engine_for` on each
 share, a ``nogil`` kernel: :mod:`finkensim.kernels.threads`) with the T loop inside, work buffers allocated once per
-environment, no Python per step. The loop body calls non-inlined twins of the per-environment kernels (the same
-Python functions compiled as functions, :mod:`finkensim.kernels.twin`): identical results, and a cold compilation
+environment, no Python per step. The loop body calls outlined copies of the per-environment kernels (the same
+Python functions compiled as functions, :mod:`finkensim.kernels.outline`): identical results, and a cold compilation
 of ≈ 20 s instead of about a minute with everything inlined.
 
 The kernels take a handful of NamedTuple records: :class:`~finkensim.swarm.state.SwarmState` (the world state,
@@ -32,20 +32,20 @@ from ..behaviours.wall_check import WALL_CHECK_NONE, dead_reckon_env, wall_check
 from ..sensors.latency import LAG_RANGING
 from ..kernels.cellgrid import env_grid
 from ..kernels.threads import run_ranges
-from ..kernels.twin import INTERNAL, twin
+from ..kernels.outline import INTERNAL, outlined
 from ..world import step_env
 from .sense import sense_buffers, sense_env
 
-__all__ = ["engine_for", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS", "dead_reckon_twin", "wall_check_twin",
-           "body_to_world_twin", "step_twin"]
+__all__ = ["engine_for", "swarm_rollout", "PARALLEL_MIN_COPTER_STEPS", "dead_reckon_outlined", "wall_check_outlined",
+           "body_to_world_outlined", "step_outlined"]
 
 
-# the per-environment kernels of behave and step as called functions (finkensim.kernels.twin); control.py calls
+# the per-environment kernels of behave and step as called functions (finkensim.kernels.outline); control.py calls
 # some of them too
-dead_reckon_twin = twin(dead_reckon_env)
-wall_check_twin = twin(wall_check_env)
-body_to_world_twin = twin(body_to_world_env)
-step_twin = twin(step_env)
+dead_reckon_outlined = outlined(dead_reckon_env)
+wall_check_outlined = outlined(wall_check_env)
+body_to_world_outlined = outlined(body_to_world_env)
+step_outlined = outlined(step_env)
 
 
 @njit(cache=True, **INTERNAL)
@@ -163,20 +163,20 @@ def _swarm_env(span, state, run, rec, models, params, grid):
             sense_env(b, k, state, run, models, buf, grid, cells)
             # 2. behave
             if run.do_imu:
-                dead_reckon_twin(buf.imu_acc, buf.imu_gyro, wall_check.dt, memory.dr_pos[b], memory.dr_vel[b],
+                dead_reckon_outlined(buf.imu_acc, buf.imu_gyro, wall_check.dt, memory.dr_pos[b], memory.dr_vel[b],
                                  memory.dr_yaw[b])
             if run.do_sonar:
-                wall_check_twin(buf.sonar, ranging, wall_check, fail_buf, memory, b, (pos, grid, cells, near_on))
+                wall_check_outlined(buf.sonar, ranging, wall_check, fail_buf, memory, b, (pos, grid, cells, near_on))
             inputs = BehaviourInput(pos, yaw, buf.sonar, memory.wall[b], buf.sonar_down, ranging, buf.imu_acc,
                                     buf.imu_gyro, seed, env, k, run.dt)
             if BODY_FRAME:
                 behaviour_commands(inputs, params, memory.commands[b], cmd_body, cmd_w)
-                body_to_world_twin(yaw, cmd_body, cmd_v)
+                body_to_world_outlined(yaw, cmd_body, cmd_v)
             else:
                 behaviour_commands(inputs, params, memory.commands[b], cmd_v, cmd_w)
             _record_step(t, b, rec, buf, memory.wall[b], cmd_v, cmd_w)
             # 3. step
-            step_twin(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt,
+            step_outlined(world, b, cmd_v, cmd_w, (models.copter, models.hinge, models.geometry), run.dt,
                       (dist_buf, gap_buf), grid, cells)
 
 
@@ -205,7 +205,7 @@ def engine_for(behaviour):
         f = _swarm_env
         name = f"swarm_env_{behaviour.name}"
         # its commands as a called function without Python wrappers (which the loop would link in and optimise again)
-        commands = twin(behaviour.commands, cache=behaviour.cached)
+        commands = outlined(behaviour.commands, cache=behaviour.cached)
         scope = dict(f.__globals__, behaviour_commands=commands, BODY_FRAME=behaviour.frame == "body")
         g = types.FunctionType(f.__code__, scope, name, f.__defaults__, f.__closure__)
         g.__qualname__ = name

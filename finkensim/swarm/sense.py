@@ -11,7 +11,7 @@ the wall check and the behaviour) and the externally commanded step of the RL en
 :class:`SenseBuffers`, and its kernel call into :func:`sense_env` at its place in the sequence (a correction of
 readings goes after the sensor it corrects, a latency history after all of them).
 
-The per-sensor kernels are called through their non-inlined twins (:mod:`finkensim.kernels.twin`): one compilation
+The per-sensor kernels are called through their outlined copies (:mod:`finkensim.kernels.outline`): one compilation
 of each serves both engines.
 """
 from __future__ import annotations
@@ -22,24 +22,24 @@ import numpy as np
 from numba import njit
 
 from ..arena import shift_plates_env
-from ..kernels.twin import INTERNAL, twin
+from ..kernels.outline import INTERNAL, outlined
 from ..sensors.imu import imu_env
 from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_env
 from ..sensors.ranging_kernels import ranging_grid_env
 from ..sensors.sonar_hold import hold_env
-from ..sensors.ultrasonic import N_SONARS, displaced_plates_env, down_env, ultrasonic_env
+from ..sensors.sonar import N_SONARS, displaced_plates_env, down_env, sonar_env
 
-__all__ = ["SenseBuffers", "sense_buffers", "sense_env", "plates_twin", "sonar_twin", "hold_twin", "down_twin",
-           "ranging_twin", "imu_twin", "shift_twin", "delay_twin"]
+__all__ = ["SenseBuffers", "sense_buffers", "sense_env", "plates_outlined", "sonar_outlined", "hold_outlined", "down_outlined",
+           "ranging_outlined", "imu_outlined", "shift_outlined", "delay_outlined"]
 
-plates_twin = twin(displaced_plates_env)
-sonar_twin = twin(ultrasonic_env)
-hold_twin = twin(hold_env)
-down_twin = twin(down_env)
-ranging_twin = twin(ranging_grid_env)
-imu_twin = twin(imu_env)
-shift_twin = twin(shift_plates_env)
-delay_twin = twin(delay_env)
+plates_outlined = outlined(displaced_plates_env)
+sonar_outlined = outlined(sonar_env)
+hold_outlined = outlined(hold_env)
+down_outlined = outlined(down_env)
+ranging_outlined = outlined(ranging_grid_env)
+imu_outlined = outlined(imu_env)
+shift_outlined = outlined(shift_plates_env)
+delay_outlined = outlined(delay_env)
 
 
 class SenseBuffers(NamedTuple):
@@ -80,7 +80,7 @@ def sense_buffers(sonar, ranging, imu_acc, imu_gyro, models, fill_ranging):
                         fill_ranging)
 
 
-@njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.twin)
+@njit(cache=True, inline="always")  # why: one level of calls less below the engines (finkensim.kernels.outline)
 def sense_env(b, k, state, run, models, buf, grid, cells):
     """The sensors of environment b at step k → ``buf`` (:class:`SenseBuffers`), each when ``run`` enables it:
     sonars on the plates displaced by their current angles and by the curtain bulge where the walls have one
@@ -101,25 +101,25 @@ def sense_env(b, k, state, run, models, buf, grid, cells):
     delay = state.behaviour.sensor_delay[b]
     cols = run.delay_columns  # each sensor's columns in the ring buffer, computed once per rollout
     if run.do_sonar:
-        plates_twin(world.theta[b], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, buf.plate_a, buf.plate_b)
+        plates_outlined(world.theta[b], geometry.plate_a, geometry.plate_b, geometry.normal, geometry.lever, buf.plate_a, buf.plate_b)
         if world.bulge.shape[1] > 0:  # the curtain bulge (walls.model) on top of the hinge
-            shift_twin(world.bulge[b], geometry.normal, buf.plate_a, buf.plate_b)
-        sonar_twin(pos, yaw, (buf.plate_a, buf.plate_b, geometry.width, geometry.length), sonar, (seed, env, k),
+            shift_outlined(world.bulge[b], geometry.normal, buf.plate_a, buf.plate_b)
+        sonar_outlined(pos, yaw, (buf.plate_a, buf.plate_b, geometry.width, geometry.length), sonar, (seed, env, k),
                    (buf.sonar_rays, buf.sonar_ideal, buf.sonar_hit, buf.hit_point, buf.slot), buf.sonar, grid, cells)
         if sonar.update_hz > 0.0:
-            hold_twin(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sonar.update_hz, sonar.update_phase)
+            hold_outlined(buf.sonar, state.behaviour.sonar_held[b], k, run.dt, sonar.update_hz, sonar.update_phase)
         if lags[LAG_SONAR] > 0:
-            delay_twin(buf.sonar, delay, cols[LAG_SONAR], k, lags[LAG_SONAR])
+            delay_outlined(buf.sonar, delay, cols[LAG_SONAR], k, lags[LAG_SONAR])
     if run.do_down:
-        down_twin(buf.altitude, sonar, seed, env, k, buf.sonar_down)
+        down_outlined(buf.altitude, sonar, seed, env, k, buf.sonar_down)
     if run.do_ranging:
-        ranging_twin(pos, yaw, models.beacons, (seed, env, k), models.ranging, buf.ranging, grid, cells,
+        ranging_outlined(pos, yaw, models.beacons, (seed, env, k), models.ranging, buf.ranging, grid, cells,
                      buf.fill_ranging)
         if lags[LAG_RANGING] > 0:
-            delay_twin(buf.ranging, delay, cols[LAG_RANGING], k, lags[LAG_RANGING])
+            delay_outlined(buf.ranging, delay, cols[LAG_RANGING], k, lags[LAG_RANGING])
     if run.do_imu:
-        imu_twin(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
+        imu_outlined(world.acc[b], yaw, world.yaw_rate[b], state.imu_bias[b], models.imu, seed, env, k, buf.imu_acc,
                  buf.imu_gyro)
         if lags[LAG_IMU] > 0:
-            delay_twin(buf.imu_acc, delay, cols[LAG_IMU], k, lags[LAG_IMU])
-            delay_twin(buf.imu_gyro.reshape((buf.imu_gyro.shape[0], 1)), delay, cols[LAG_IMU] + 2, k, lags[LAG_IMU])
+            delay_outlined(buf.imu_acc, delay, cols[LAG_IMU], k, lags[LAG_IMU])
+            delay_outlined(buf.imu_gyro.reshape((buf.imu_gyro.shape[0], 1)), delay, cols[LAG_IMU] + 2, k, lags[LAG_IMU])

@@ -17,7 +17,7 @@ from ..sensors.imu import ImuModel, imu_step
 from ..sensors.latency import LAG_IMU, LAG_RANGING, LAG_SONAR, delay_batch, delay_buffer, sensor_lags
 from ..sensors.ranging import RangingModel, ranging_readings
 from ..sensors.sonar_hold import hold_env
-from ..sensors.ultrasonic import N_SONARS, SonarModel, down_readings, ultrasonic_readings
+from ..sensors.sonar import N_SONARS, SonarModel, down_readings, sonar_readings
 from ..world import World
 from ..kernels.cellgrid import engine_grid
 from .kernel import swarm_rollout
@@ -266,7 +266,7 @@ class SwarmSim:
         on = self.enabled
         sonar = ideal = hit = None
         if on["sonar"]:
-            sonar, ideal, hit, _ = ultrasonic_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
+            sonar, ideal, hit, _ = sonar_readings(ws.pos, ws.yaw, ws.theta, self.world.arena, self.sonar, seed,
                                                        env_ids, k, return_ideal=True, bulge=ws.bulge)
         down = down_readings(ws.pos, self.sonar, seed, env_ids, k) if on["down"] else None
         ranging = ranging_readings(ws.pos, self.beacons, seed, env_ids, k, self.ranging, yaw=ws.yaw) if on["ranging"] else None

@@ -220,7 +220,7 @@ class Models(NamedTuple):
     """Every model the engine's kernels read, as one record (static during a rollout).
 
     copter (:class:`~finkensim.copters.CopterParams`), hinge (:class:`~finkensim.arena.HingeParams`), geometry
-    (:class:`~finkensim.arena.WallGeometry`), sonar (:class:`~finkensim.sensors.ultrasonic.SonarModel`), ranging
+    (:class:`~finkensim.arena.WallGeometry`), sonar (:class:`~finkensim.sensors.sonar.SonarModel`), ranging
     (``RangingModel.params``), beacons (M, 2) m, imu (:class:`~finkensim.sensors.imu.ImuModel`), wall_check
     (:class:`~finkensim.behaviours.wall_check.WallCheckParams`). A new sensor's or effect's model is one more field
     at the end. The flown behaviour's parameter record travels beside it (its type differs per behaviour: inside

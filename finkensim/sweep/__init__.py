@@ -7,7 +7,7 @@ serially, or on a Dask cluster, with results written run by run so a crash loses
     df = run_sweep(sweep, out="out/sweep", resume=True)   # finish an interrupted sweep
 
 The sweep file format: :mod:`finkensim.sweep.sweepfile`. Modules: ``sweepfile`` (TOML → design
-arguments), ``design`` (:class:`Sweep`), ``checks`` (:class:`SweepError`, key checks), ``keys`` (run ids,
+arguments), ``design`` (:class:`Sweep`), ``parsing`` (:class:`SweepError`, the ``Parser`` and key checks shared by the sweep and study files), ``keys`` (run ids,
 seeds, fingerprint), ``tables`` (results schema and rows), ``executors`` (serial / process pool / Dask),
 ``store`` (Parquet parts, resume), ``summary`` (statistics, plot), ``run`` (:func:`run_sweep`).
 
@@ -33,7 +33,7 @@ Pool and local Dask workers end with the sweep process, however it ends (SIGKILL
 """
 from __future__ import annotations
 
-from .checks import SweepError
+from .parsing import SweepError
 from .design import Sweep
 from .executors import EXECUTORS, terminate_as_interrupt
 from .keys import Run, format_params

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import SweepError
+from .parsing import SweepError
 
 __all__ = ["CALIBRATION_MODES", "SAMPLES_FILE", "read_samples", "samples_for_base", "sample_for"]
 

@@ -16,7 +16,7 @@ from ..config import Config, ConfigError
 from ..episode import check_runnable
 from ..metrics import METRICS, check_metric_names
 from ..scenario import load_scenario
-from .checks import Parser, SweepError, config_value, is_duration
+from .parsing import Parser, SweepError, config_value, is_duration
 from .keys import DEFAULT_REPLICATES, Run, content_hash, format_params, format_value, seed_for
 from .calibration import sample_for
 from .sweepfile import read_sweep_toml, sweep_arguments

@@ -13,7 +13,7 @@ from typing import Any, Iterator, Mapping
 
 from ..episode import run_episode
 from ..usertext import suggest
-from .checks import SweepError
+from .parsing import SweepError
 
 EXECUTORS = ("serial", "process", "dask")
 """Names of the sweep executors: one process, a local process pool, a Dask cluster."""

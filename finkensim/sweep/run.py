@@ -10,7 +10,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
-from .checks import SweepError
+from .parsing import SweepError
 from .design import Sweep
 from .executors import check_executor, dask_client, run_dask, run_process, run_serial
 from .store import prepare_out, read_parts, write_outputs, write_part

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 from .. import __version__
 from ..atomic import write_atomic
-from .checks import SweepError
+from .parsing import SweepError
 from .summary import plot_summary, summarize
 from .tables import column_value
 

@@ -63,7 +63,7 @@ from ..config import SECTIONS, Config, ConfigError, check_key
 from ..usertext import loads_toml, suggest
 from ..metrics import METRICS
 from ..scenario import load_scenario
-from .checks import Parser, SweepError, field_kind, is_duration, is_number
+from .parsing import Parser, SweepError, field_kind, is_duration, is_number
 from .calibration import samples_for_base
 from .keys import DEFAULT_REPLICATES, SEED_TAG_DESIGN
 

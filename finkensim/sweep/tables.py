@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Any, Mapping
 
-from .checks import is_number
+from .parsing import is_number
 from .keys import Run
 
 if TYPE_CHECKING:

@@ -9,9 +9,9 @@
   what was expected.
 * :mod:`.profiles` — the ``fast`` / ``thorough`` Hypothesis profiles (``FINKENSIM_HYPOTHESIS``).
 
-* plug-in checkers (:mod:`finkensim.plugin_checks`) — :func:`~finkensim.plugin_checks.check_behaviour`,
-  :func:`~finkensim.plugin_checks.check_task` and :func:`~finkensim.plugin_checks.check_effect`;
-  :func:`finkensim.checks.check_determinism` is the checker of a configuration.
+* plug-in checkers (:mod:`finkensim.plugin_checkers`) — :func:`~finkensim.plugin_checkers.check_behaviour`,
+  :func:`~finkensim.plugin_checkers.check_task` and :func:`~finkensim.plugin_checkers.check_effect`;
+  :func:`finkensim.determinism.check_determinism` is the checker of a configuration.
 
 Importing this package loads neither Hypothesis nor pytest: ``strategies`` and ``profiles`` are imported on first
 use, so the assertions work without the test extras.
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import importlib
 
-from ..plugin_checks import PluginError, check_behaviour, check_effect, check_task
+from ..plugin_checkers import PluginError, check_behaviour, check_effect, check_task
 from .assertions import assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible
 
 __all__ = ["assert_inside_arena", "assert_no_overlap", "assert_reproducible", "assert_flightlog_valid",

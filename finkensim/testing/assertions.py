@@ -155,7 +155,7 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
     """Assert that results depend on the seed only: bit-identical across repeats, batch sizes, environment
     order and executors.
 
-    1. :func:`finkensim.checks.check_determinism` (repeat, purity, each environment of a batch of ``n_envs`` equal
+    1. :func:`finkensim.determinism.check_determinism` (repeat, purity, each environment of a batch of ``n_envs`` equal
        to a lone run, reversed environment order) for ``n_steps`` steps.
     2. With more than one of ``executors`` (from :data:`finkensim.sweep.executors.EXECUTORS`) and a configuration
        as ``target``: the same episodes (seeds ``seed``, ``seed + 1``; ``n_steps`` steps) run by each executor, as a
@@ -166,7 +166,7 @@ def assert_reproducible(target: Any, *, seed: int = 0, n_envs: int = 3, n_steps:
         target: a Config (or anything :func:`~finkensim.config.load_config` takes), a SwarmSim, or a World (with
             ``controller``); executors need a configuration (a Python behaviour lives in this process only).
     """
-    from ..checks import check_determinism, first_difference
+    from ..determinism import check_determinism, first_difference
     from ..config import Config, load_config
 
     try:

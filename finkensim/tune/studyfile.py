@@ -44,7 +44,7 @@ from typing import Any, Mapping
 from ..config import Config, ConfigError
 from ..metrics import METRICS
 from ..usertext import suggest
-from ..sweep.checks import Parser, is_duration
+from ..sweep.parsing import Parser, is_duration
 from ..sweep.sweepfile import SPEC_KEYS, base_from_table, param_spec, read_sweep_toml
 
 __all__ = ["Param", "StudySpec", "parse_study", "TOP_KEYS", "SAMPLERS"]

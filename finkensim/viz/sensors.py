@@ -135,7 +135,7 @@ def _plot_sonar_panel(axs, log, copter: int, t: np.ndarray) -> None:
         axs[0].grid(True, lw=0.4, alpha=0.4)
     axs[-1].set_xlabel("time (s)")
     axs[0].set_xlim(t[0], t[-1])
-    axs[0].set_title(f"(a) ultrasonic sonars of copter {copter}: readings (clamped to [{lo:g}, {hi:g}] m) "
+    axs[0].set_title(f"(a) sonars of copter {copter}: readings (clamped to [{lo:g}, {hi:g}] m) "
                      "vs ideal distance", fontsize=10)
     axs[0].legend(handles=handles, loc="upper left", fontsize=7, ncol=len(handles), framealpha=0.85)
 

@@ -29,11 +29,11 @@ MUTATIONS = {
         "a 2 % bias in the ranging sampler"),
     "echo_error_sign": (
         "finkensim/sensors/sonar_kernels.py", "    return y + sp.rayleigh_sign * (R - sp.rayleigh_s)\n",
-        "    return y - sp.rayleigh_sign * (R - sp.rayleigh_s)\n", ["tests/test_ultrasonic.py"],
+        "    return y - sp.rayleigh_sign * (R - sp.rayleigh_s)\n", ["tests/test_sonar.py"],
         "a sign flip in the sonar echo error"),
     "firing_slot_swapped": (
         "finkensim/sensors/sonar_kernels.py", "        return n % sp.n_slots\n",
-        "        return (sp.n_slots - 1 - n) % sp.n_slots\n", ["tests/test_ultrasonic.py"],
+        "        return (sp.n_slots - 1 - n) % sp.n_slots\n", ["tests/test_sonar.py"],
         "round-robin firing slots in reverse order"),
     "hinge_substeps_off_by_one": (
         "finkensim/arena.py", "    for _ in range(hp.substeps):\n        for q in range(n_on):\n",

@@ -5,7 +5,7 @@ over all member pairs (the kernel sorts), cross-talk paths and line-of-sight cle
 and sonar (the kernels cull), IMU windows from exact poses, and the bulge's first-order lag as the exact solution of
 its ODE (the kernel runs a recursion).
 
-What it shares and why: ``sonar_reading_draws`` takes the reading draws from ``tests.naive.ultrasonic.naive_measured``
+What it shares and why: ``sonar_reading_draws`` takes the reading draws from ``tests.naive.sonar.naive_measured``
 and the counter-based numbers of ``finkensim.kernels.rng`` in the diagnosis's documented layout (draw m uses block m of
 the reading's STREAM_EFFECT numbers): the error model is the simulator's (one model), so this checks the diagnosis's
 bookkeeping, not the model. The CRPS itself is checked against ``scoringrules`` (``tests/test_gap_censoring.py``)."""
@@ -17,7 +17,7 @@ import numpy as np
 
 from finkensim.kernels.rng import STREAM_EFFECT, normals_array, uniforms_array
 
-from .ultrasonic import naive_measured
+from .sonar import naive_measured
 
 
 def ensemble_terms(draws, y, period=None):

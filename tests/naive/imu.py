@@ -5,7 +5,7 @@ copter, STREAM_IMU) cell, normals 0-2 are the white noise (acc x, acc y, gyro), 
 increments, 6-8 the turn-on bias.
 
 What it shares and why: the random-number layout above (which normal feeds which channel) is the model's definition,
-so the twin restates it; the noise law itself is checked against the analytic discretisation (white-noise std
+so the reference restates it; the noise law itself is checked against the analytic discretisation (white-noise std
 σ/√dt, bias std √(k·dt)·σ_b; ``tests/test_imu.py``, ``examples/sensor_stats.py`` with ``tests/test_readme_numbers.py``,
 and the CLI flight's gyro error in ``tests/test_cli.py``).
 """

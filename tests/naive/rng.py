@@ -10,7 +10,7 @@ indices are reinterpreted as uint64 (two's complement), as ``np.uint64(i)`` does
 
 with G the golden-ratio constant and ``mix`` SplitMix64's finaliser.
 
-What this twin can and cannot catch: the formulas above are the generator's specification (the documented random
+What this reference can and cannot catch: the formulas above are the generator's specification (the documented random
 number layout), so this file necessarily restates them — vectorised over uint64 arrays where the kernel works on
 scalars — and catches numba-vs-NumPy drift and layout slips (a wrong index, a missing ½ ulp). It cannot tell whether
 ``mix`` is SplitMix64 at all: that is checked against an outside reference, the published SplitMix64 outputs for

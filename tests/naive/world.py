@@ -15,7 +15,7 @@ One step, in order:
      (implicit); ``substeps`` semi-implicit Euler substeps; theta clamped to [-pi/2, pi/2].
 
 What it shares and why: the discretisation (semi-implicit Euler, the anti-windup clip, the implicit friction step) is
-the engine's numerical scheme, so this twin restates it and checks the compiled loops against it to rounding. Whether
+the engine's numerical scheme, so this reference restates it and checks the compiled loops against it to rounding. Whether
 that scheme solves the plate's ODE is checked apart from it: against scipy's ``solve_ivp`` on the ODE written from
 DESIGN, with the engine's own substep-halving change as the error bound
 (``tests/test_arena.py::test_hinge_matches_an_independent_ode_solution``).

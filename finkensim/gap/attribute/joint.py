@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from . import effects as fx
-from ..diagnosis import FitResult
-from ..quantify.shrink import ShrinkMeter
+from .fit_result import FitResult
+from .shrink import ShrinkMeter
 from .fits import joint_fit
 from .parsimony import pair_suffices
 from .selection import Selection, clean_values

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effects as fx
-from ..diagnosis import FitResult
+from .fit_result import FitResult
 from .fits import nelder_mead
 
 __all__ = ["flexible_version", "earn_place", "Earned", "pair_suffices"]

@@ -19,7 +19,7 @@ import numpy as np
 from . import effects as fx
 from ..detect.significance import sensor_gaps
 from ..model.replay import GapInputError
-from ..quantify.shrink import ShrinkMeter
+from .shrink import ShrinkMeter
 from .parsimony import earn_place
 from .targeted import passed
 
@@ -59,7 +59,7 @@ def first_round(diag, cands) -> list:
 class Selection:
     """The state of the selection: the effects added, the model they make and its held-out rows, the waterfall's
     steps and every model's held-out scores evaluated so far (the shrink's best score,
-    :mod:`~finkensim.gap.quantify.shrink`).
+    :mod:`~finkensim.gap.attribute.shrink`).
 
     ``current``, ``cur_scores``, ``cur_gaps`` and ``cur_score`` are the current model, its per-row held-out scores
     and gaps (sensor → (n,)) and its mean held-out score; ``steps`` are (label, effect, rows_score, rows_gap,

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..report.honesty import check_plausible, sample_sizes
+from .sufficiency import check_plausible, sample_sizes
 
 __all__ = ["Detection", "detect_gap", "sensor_gaps"]
 
@@ -44,7 +44,7 @@ class Detection:
     significant : bool
         A significant gap somewhere (the omnibus test, or the targeted one once it ran).
     sizes : dict
-        Sensor → readings and blocks held out (:func:`~finkensim.gap.report.honesty.sample_sizes`).
+        Sensor → readings and blocks held out (:func:`~finkensim.gap.detect.sufficiency.sample_sizes`).
     locs : list of dict
         The gap's locations (:meth:`~finkensim.gap.diagnosis.Diagnosis.locations`).
     targeted : dict or None

@@ -31,7 +31,7 @@ from ...kernels.raycast import HIT_NONE
 from ...sensors.sonar_kernels import echo_error, measured_reading
 from ...sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
-__all__ = ["ModelParams", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
+__all__ = ["ModelParams", "SENSORS", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +129,9 @@ def _bulge_from_config(walls) -> dict:
                 bulge_hinge=walls.bulge_hinge if on else 0.0)
 
 
+#: the diagnosed sensors by their gap-report keys (docs/formats/gap-report.md; "ultrasonic" is the report's key of
+#: the sonar), in report order
+SENSORS = ("ultrasonic", "ranging", "imu")
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
     "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar",

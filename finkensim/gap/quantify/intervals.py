@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..attribute import effects as fx
-from ..diagnosis import SENSORS
+from ..model.params import SENSORS
 from ..detect.stats import BlockBootstrap
 
 __all__ = ["parameter_intervals", "GRID", "LOCAL", "N_BOOT"]

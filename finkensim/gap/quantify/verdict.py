@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from ..attribute.selection import Selection, clean_values
 from ..attribute.stated import stated_fields
 from ..detect.significance import sensor_gaps
-from ..report.honesty import flag_bounds
+from .bounds import flag_bounds
 from .correction import fit_correction
-from .shrink import ShrinkMeter
+from ..attribute.shrink import ShrinkMeter
 
 __all__ = ["Outcome", "quantify", "correct"]
 
@@ -26,7 +26,7 @@ class Outcome:
     Parameters
     ----------
     meter : ShrinkMeter
-        The shrink measure over every model evaluated (:class:`~finkensim.gap.quantify.shrink.ShrinkMeter`).
+        The shrink measure over every model evaluated (:class:`~finkensim.gap.attribute.shrink.ShrinkMeter`).
     shrink_sensors : list of str
         The sensors the shrink is measured on (those with a significant gap, else all).
     waterfall : list of dict
@@ -34,7 +34,7 @@ class Outcome:
     effects : list of dict
         The report's ``effects``: every first-round candidate with its fit and shrink.
     bounds : dict
-        Effect name → its parameters fitted at a bound (:func:`~finkensim.gap.report.honesty.flag_bounds`).
+        Effect name → its parameters fitted at a bound (:func:`~finkensim.gap.quantify.bounds.flag_bounds`).
     total_shrink : float
         The selection's held-out shrink (0 without a significant gap).
     verdict : dict

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..attribute import effects as fx
 from ..attribute.selection import Selection, clean_values
 from ..quantify.verdict import Outcome
-from .honesty import too_little_data
+from ..detect.sufficiency import too_little_data
 from .result import GapDetails, GapReport
 
 __all__ = ["assemble_report"]

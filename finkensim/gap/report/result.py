@@ -50,13 +50,13 @@ class GapDetails:
     'unexplained' only when the shrink is under ``unexplained_shrink`` and some remainder is significant); calibration_gap, calibration_ci: the
     held-out mean of E|X − y| − E|X − X'| (zero-mean when the logs could have come from the model; the
     significance test) and its CI; best_score: the best held-out score of any predictive built (the
-    reference of the score term of the shrink, :mod:`~finkensim.gap.quantify.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
+    reference of the score term of the shrink, :mod:`~finkensim.gap.attribute.shrink`); censoring: sensor → {lo, hi, no_echo} of the threshold-weighted
     score; correction: the fitted :class:`~finkensim.gap.quantify.correction.Correction` or None; targeted: when the omnibus
     test found no gap but a structured effect's held-out improvement did (:func:`~finkensim.gap.pipeline.run_diagnosis`),
     {effect, sensors, improvement, ci, p, threshold, passed}, else None; correction_skipped: sensor (or "all") →
     why no correction was fitted although the verdict is unexplained; limit_notes: sensor → range limit taken from
     the logs (:mod:`~finkensim.gap.detect.limits`); sample_sizes: sensor → {heldout, train, blocks}; too_little_data:
-    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.report.honesty`); residuals: per location
+    sensor → the "too little data to decide ..." sentence (:mod:`~finkensim.gap.detect.sufficiency`); residuals: per location
     (same order), the median of reading − model median in the sensor's unit (m for ultrasonic and ranging);
     at_bound: effect name → its fitted parameters at a bound of their range (:func:`~finkensim.gap.attribute.effects.at_bound`);
     added_params: effect → its fitted parameters in the final selection (after any joint refit); config: the

@@ -20,7 +20,7 @@ import numpy as np
 from .behaviours.registry import Behaviour, BehaviourInput
 from .config import Config
 from .default_scenario import load_scenario
-from .kernels.twin import python_function
+from .kernels.outline import python_function
 
 __all__ = ["PluginError", "check_behaviour", "check_effect", "check_task", "random_inputs"]
 

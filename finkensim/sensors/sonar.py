@@ -1,4 +1,4 @@
-"""Ultrasonic sensors: four horizontal sonars (front, left, back, right) and one facing down.
+"""Sonars (ultrasonic range sensors): four horizontal ones (front, left, back, right) and one facing down.
 
 **Geometry.** Sonar k of copter n (k = 0 front, 1 left, 2 back, 3 right) points along the heading
 ψ = yaw[n] + mount_yaw[k] (``sonar.yaw_deg``, default 0°, 90°, 180°, −90°) and sits at
@@ -77,11 +77,11 @@ in sonar order front, left, back, right.
 **Where the code lives.** The model record :class:`SonarModel` is in
 :mod:`finkensim.sensors.sonar_model`; the per-environment kernels (:func:`displaced_plates_env`,
 :func:`ideal_env`, :func:`fire_slots_env`, :func:`crosstalk_path`, :func:`measured_reading`,
-:func:`ultrasonic_env`, :func:`down_env`) in :mod:`finkensim.sensors.sonar_kernels`; ray casting in
+:func:`sonar_env`, :func:`down_env`) in :mod:`finkensim.sensors.sonar_kernels`; ray casting in
 :mod:`finkensim.kernels.raycast`. They are ``inline="always"`` numba functions of arrays, numbers and
 the :class:`SonarModel` NamedTuple, so compiled loops (the swarm rollout, the gap replay) call the very
 same code with their own work buffers. This module holds the batched Python API; its parallel loops call
-non-inlined twins of the same Python functions (identical results; much shorter compilation).
+outlined copies of the same Python functions (identical results; much shorter compilation).
 
 **Fields beyond the config.** :class:`SonarModel` also has ``range_scale`` (1), ``bias`` (0 m) and
 ``crosstalk_hear_probability`` (1): an echo reads range_scale · d + bias before its error, and a
@@ -98,10 +98,10 @@ from ..arena import shift_plates_env
 from ..config import ConfigError
 from ..kernels.cellgrid import NO_GRID, no_grid_buffers
 from ..kernels.raycast import HIT_COPTER, HIT_NONE, HIT_WALL, cast_ray, cast_ray_culled, plate_bands
-from ..kernels.twin import twin
+from ..kernels.outline import outlined
 from .sonar_kernels import (crosstalk_path, displaced_plates_env, down_env, echo_reading, fire_slot, fire_slots_env,
                             ideal_env, measured_reading, shifted_plates_env, sonar_hit, sonar_poses_env,
-                            ultrasonic_env)
+                            sonar_env)
 from .sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, CROSSTALK_OFF, DOWN_SONAR, ERROR_GAUSSIAN,
                           ERROR_NONE, ERROR_RAYLEIGH, ERROR_SEED, N_SONARS, SCHEDULE_RANDOM_OFFSET,
                           SCHEDULE_ROUND_ROBIN, SCHEDULE_SIMULTANEOUS, SonarModel, WallGeometry, rayleigh_std,
@@ -115,20 +115,20 @@ __all__ = [
     "SonarModel", "WallGeometry", "wall_geometry",
     "displaced_plates_env", "shifted_plates_env", "sonar_poses_env", "sonar_hit", "cast_ray", "cast_ray_culled",
     "plate_bands", "ideal_env", "fire_slot", "fire_slots_env", "crosstalk_path", "echo_reading", "measured_reading",
-    "ultrasonic_env", "down_env",
-    "ideal_ultrasonic", "ultrasonic_readings", "down_readings", "fire_slots",
-    "ultrasonic_from_state", "ultrasonic_from_trajectory", "rayleigh_std",
+    "sonar_env", "down_env",
+    "ideal_sonar", "sonar_readings", "down_readings", "fire_slots",
+    "sonar_from_state", "sonar_from_trajectory", "rayleigh_std",
 ]
 
 # ---------------------------------------------------------------------------------------------
 # batched kernels
 
-# Batched kernels call non-inlined twins of the per-environment kernels (finkensim.kernels.twin): the same code,
+# Batched kernels call outlined copies of the per-environment kernels (finkensim.kernels.outline): the same code,
 # compiled once as a function (its helpers inlined into it) instead of being inlined into every prange body, which
 # keeps numba's parallel-loop compilation short.
-_ideal_env_fn = twin(ideal_env)
-_ultrasonic_env_fn = twin(ultrasonic_env)
-_down_env_fn = twin(down_env)
+_ideal_env_fn = outlined(ideal_env)
+_sonar_env_fn = outlined(sonar_env)
+_down_env_fn = outlined(down_env)
 
 
 @njit(cache=True, parallel=True)
@@ -153,7 +153,7 @@ def _batch(pos, yaw, theta, bulge, geometry, sonar, counters, ideal, out):
         if bulge.shape[1] > 0:
             shift_plates_env(bulge[b], geometry.normal, pa, pb)
         if measure:
-            _ultrasonic_env_fn(pos[b], yaw[b], (pa, pb, geometry.width, geometry.length), sonar, (seed, env_ids[b], steps[b]),
+            _sonar_env_fn(pos[b], yaw[b], (pa, pb, geometry.width, geometry.length), sonar, (seed, env_ids[b], steps[b]),
                                (sonar_buf, dist[b], kind[b], hit[b], np.zeros(N, dtype=np.int64)), out[b], off, no)
         else:
             _ideal_env_fn(pos[b], yaw[b], (pa, pb, geometry.width, geometry.length), sonar, (sonar_buf, dist[b], kind[b], hit[b]), off,
@@ -206,7 +206,7 @@ def _check_geometry(pos, yaw, theta, geom):
     return pos, yaw, theta
 
 
-def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
+def ideal_sonar(pos, yaw, theta, arena, params: SonarModel):
     """Ideal horizontal sonar readings (no error, no cross-talk, not clamped to min_range).
 
     Args:
@@ -235,17 +235,17 @@ def ideal_ultrasonic(pos, yaw, theta, arena, params: SonarModel):
     return dist, kind, hit
 
 
-def ultrasonic_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, env_ids, step: int,
+def sonar_readings(pos, yaw, theta, arena, params: SonarModel, seed: int, env_ids, step: int,
                         return_ideal: bool = False, bulge=None):
     """Measured horizontal sonar readings of B environments at world step ``step``.
 
-    Arguments as :func:`ideal_ultrasonic`, plus seed, env_ids (B,) global environment indices and step
+    Arguments as :func:`ideal_sonar`, plus seed, env_ids (B,) global environment indices and step
     (``WorldState.step``), which key the random numbers; ``bulge`` (B, S) m: the plates' curtain bulge
     (``WorldState.bulge``, walls.model), None for none.
 
     Returns:
         readings (B, N, 4) m in [min_range, max_range] (front, left, back, right); with
-        ``return_ideal=True`` the tuple (readings, dist, hit_type, hit_xy) of :func:`ideal_ultrasonic`.
+        ``return_ideal=True`` the tuple (readings, dist, hit_type, hit_xy) of :func:`ideal_sonar`.
     """
     sonar = _check_model(params)
     geometry = wall_geometry(arena)
@@ -293,19 +293,19 @@ def fire_slots(params: SonarModel, seed: int, env_ids, step: int, n_copters: int
     return out
 
 
-def ultrasonic_from_state(state, arena, params: SonarModel, return_ideal: bool = False):
-    """:func:`ultrasonic_readings` of a :class:`~finkensim.world.WorldState` (its pos, yaw, theta, seed,
+def sonar_from_state(state, arena, params: SonarModel, return_ideal: bool = False):
+    """:func:`sonar_readings` of a :class:`~finkensim.world.WorldState` (its pos, yaw, theta, seed,
     env_ids, step and bulge)."""
-    return ultrasonic_readings(state.pos, state.yaw, state.theta, arena, params, state.seed, state.env_ids,
+    return sonar_readings(state.pos, state.yaw, state.theta, arena, params, state.seed, state.env_ids,
                                state.step, return_ideal=return_ideal, bulge=state.bulge)
 
 
-def ultrasonic_from_trajectory(traj, arena, params: SonarModel, seed: int, env_ids, step0: int,
+def sonar_from_trajectory(traj, arena, params: SonarModel, seed: int, env_ids, step0: int,
                                return_ideal: bool = False):
     """Readings along a recorded :class:`~finkensim.world.Trajectory` (pose (T, B, N, 3), theta (T, B, S)).
 
     Sample t uses the random numbers of step ``step0 + t``, so this equals calling
-    :func:`ultrasonic_readings` on each recorded state. Returns readings (T, B, N, 4) m (and, with
+    :func:`sonar_readings` on each recorded state. Returns readings (T, B, N, 4) m (and, with
     ``return_ideal``, dist (T, B, N, 4), hit_type (T, B, N, 4), hit_xy (T, B, N, 4, 2)).
     """
     sonar = _check_model(params)

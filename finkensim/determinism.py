@@ -1,11 +1,11 @@
-"""Reusable self-checks of a simulator configuration (in the spirit of Gymnasium's ``check_env``).
+"""Determinism self-check of a simulator configuration (in the spirit of Gymnasium's ``check_env``).
 
 :func:`check_determinism` verifies the reproducibility promise of :mod:`finkensim.world` and
 :mod:`finkensim.swarm` (sensors and behaviours included): a result
 depends on (seed, environment index, step, copter, sensor) only. It is cheap (a few batched rollouts)
 and is meant to be run on any new config, controller or kernel::
 
-    from finkensim.checks import check_determinism
+    from finkensim.determinism import check_determinism
     check_determinism(load_config("scenario.toml"))        # raises AssertionError on a mismatch
 """
 from __future__ import annotations

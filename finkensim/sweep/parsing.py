@@ -1,5 +1,6 @@
-"""Checks shared by the sweep file parser and the sweep design: the error type, config-key checks
-with suggestions, and the keys a sweep may not set."""
+"""Parsing shared by the sweep file (``sweepfile``), the sweep design (``design``) and the study file
+(``finkensim.tune.studyfile``): the error type, the :class:`Parser` (checks whose errors name the source),
+config-key checks with suggestions, and the keys a sweep may not set."""
 from __future__ import annotations
 
 import dataclasses

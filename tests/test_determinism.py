@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from finkensim.checks import check_determinism
+from finkensim.determinism import check_determinism
 from finkensim.config import load_config
 from finkensim.swarm import SwarmSim
 

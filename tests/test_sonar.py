@@ -1,4 +1,4 @@
-"""Ultrasonic sensors: raycast geometry, error models, cross-talk, reproducibility (fixed seeds)."""
+"""Sonars: raycast geometry, error models, cross-talk, reproducibility (fixed seeds)."""
 from __future__ import annotations
 
 import math
@@ -16,14 +16,14 @@ from finkensim.kernels.rng import STREAM_SONAR, counter_key
 from finkensim.sensors.sonar_kernels import measured_reading
 from finkensim.config import Config
 from finkensim.kernels.rng import STREAM_SONAR_SCHEDULE, uniforms_array
-from finkensim.sensors.ultrasonic import (
+from finkensim.sensors.sonar import (
     HIT_COPTER, HIT_NONE, HIT_WALL, SonarModel, cast_ray, cast_ray_culled, crosstalk_path, down_readings, fire_slots,
-    ideal_ultrasonic, plate_bands, rayleigh_std, ultrasonic_from_trajectory, ultrasonic_readings,
+    ideal_sonar, plate_bands, rayleigh_std, sonar_from_trajectory, sonar_readings,
 )
 from finkensim.behaviours.open_loop import RandomWalk
 from finkensim.testing import strategies as fst
 from finkensim.world import World
-from tests.naive.ultrasonic import naive_down, naive_ideal, naive_readings
+from tests.naive.sonar import naive_down, naive_ideal, naive_readings
 from tests.stats import assert_mean_within_se, assert_proportion_within_se, assert_std_within_se, se_std_normal
 
 HYP = settings(derandomize=True, deadline=None, max_examples=40,
@@ -51,27 +51,27 @@ def arrays(pos, yaw, arena, theta=None):
 def test_axis_aligned_distances():
     _, arena, sp = setup()
     pos, yaw, th = arrays([[1.0, 2.0]], [0.0], arena)
-    dist, kind, hit = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    dist, kind, hit = ideal_sonar(pos, yaw, th, arena, sp)
     np.testing.assert_allclose(dist[0, 0], [2.0, 2.0, 1.0, 2.0], atol=1e-12)  # front, left, back, right
     assert (kind == HIT_WALL).all()
     np.testing.assert_allclose(hit[0, 0], [[3, 2], [1, 4], [0, 2], [1, 0]], atol=1e-12)
     # facing +y: front sees y = 4, left x = 0, back y = 0, right x = 3
     pos, yaw, th = arrays([[1.0, 2.1]], [np.pi / 2], arena)
-    dist, _, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    dist, _, _ = ideal_sonar(pos, yaw, th, arena, sp)
     np.testing.assert_allclose(dist[0, 0], [1.9, 1.0, 2.1, 2.0], atol=1e-12)
 
 
 def test_offset_measured_from_sonar():
     _, arena, sp = setup(offset=0.1)
     pos, yaw, th = arrays([[1.0, 2.0]], [0.0], arena)
-    dist, _, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    dist, _, _ = ideal_sonar(pos, yaw, th, arena, sp)
     np.testing.assert_allclose(dist[0, 0], [1.9, 1.9, 0.9, 1.9], atol=1e-12)
 
 
 def test_copter_in_beam_is_hit_before_wall_and_own_body_is_ignored():
     _, arena, sp = setup(n=2)
     pos, yaw, th = arrays([[1.0, 2.0], [2.2, 2.0]], [0.0, 0.0], arena)
-    dist, kind, hit = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    dist, kind, hit = ideal_sonar(pos, yaw, th, arena, sp)
     assert dist[0, 0, 0] == pytest.approx(1.2 - 0.15, abs=1e-12) and kind[0, 0, 0] == HIT_COPTER
     np.testing.assert_allclose(hit[0, 0, 0], [2.05, 2.0], atol=1e-12)
     assert dist[0, 1, 2] == pytest.approx(1.05, abs=1e-12) and kind[0, 1, 2] == HIT_COPTER  # B's back sees A
@@ -93,13 +93,13 @@ def test_bent_plate_shortens_by_displacement(angle):
     th = np.zeros((1, arena.n_plates))
     th[0, s] = angle
     pos, yaw, _ = arrays([[1.0, 2.1]], [0.0], arena)
-    flat, _, _ = ideal_ultrasonic(pos, yaw, np.zeros_like(th), arena, sp)
-    bent, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    flat, _, _ = ideal_sonar(pos, yaw, np.zeros_like(th), arena, sp)
+    bent, kind, _ = ideal_sonar(pos, yaw, th, arena, sp)
     assert flat[0, 0, 0] - bent[0, 0, 0] == pytest.approx(arena.lever * math.sin(angle), abs=1e-12)
     assert kind[0, 0, 0] == HIT_WALL
     # a plate swung outward is behind the net: the net (backstop) still stops the ray
     th[0, s] = -angle
-    out, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    out, kind, _ = ideal_sonar(pos, yaw, th, arena, sp)
     assert out[0, 0, 0] == pytest.approx(2.0, abs=1e-12) and kind[0, 0, 0] == HIT_WALL
 
 
@@ -109,7 +109,7 @@ def test_gap_between_plates_hits_net():
     gap_y = max(arena.plate_a[s, 1], arena.plate_b[s, 1]) + 0.001  # just past the plate edge
     th = np.full((1, arena.n_plates), 0.5)
     pos, yaw, _ = arrays([[1.0, gap_y]], [0.0], arena)
-    dist, kind, _ = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    dist, kind, _ = ideal_sonar(pos, yaw, th, arena, sp)
     assert dist[0, 0, 0] == pytest.approx(2.0, abs=1e-12) and kind[0, 0, 0] == HIT_WALL
 
 
@@ -127,7 +127,7 @@ def scenes(n=3):
 def test_ideal_matches_numpy_reference(sonar, scene):
     _, arena, sp = setup(n=3, **sonar)
     pos, yaw, th = scene
-    d1, k1, h1 = ideal_ultrasonic(pos, yaw, th, arena, sp)
+    d1, k1, h1 = ideal_sonar(pos, yaw, th, arena, sp)
     d2, k2, h2 = naive_ideal(pos, yaw, th, arena, sp)
     np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(k1, k2)
@@ -158,7 +158,7 @@ def test_readings_match_numpy_reference(sonar, scene, seed, step):
     pos, yaw, th = np.repeat(pos, 2, 0), np.repeat(yaw, 2, 0), np.repeat(th, 2, 0)
     yaw[1] += 0.3
     env_ids = np.array([3, 11])
-    r1 = ultrasonic_readings(pos, yaw, th, arena, sp, seed, env_ids, step)
+    r1 = sonar_readings(pos, yaw, th, arena, sp, seed, env_ids, step)
     r2 = naive_readings(pos, yaw, th, arena, sp, seed, env_ids, step)
     np.testing.assert_allclose(r1, r2, rtol=0, atol=1e-9)
     alt = np.array([[0.6, 0.1, 2.0, 3.5], [0.6, 0.6, 0.6, 0.6]])
@@ -173,7 +173,7 @@ def test_every_reading_in_range(sonar):
     state = world.init(64, seed=5)
     state, _ = world.rollout(state, 30, RandomWalk(cfg), record=False)
     for step in range(3):
-        r = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 5, state.env_ids, step)
+        r = sonar_readings(state.pos, state.yaw, state.theta, arena, sp, 5, state.env_ids, step)
         assert r.shape == (64, 6, 4) and np.all(r >= 0.2) and np.all(r <= 3.0)
         d = down_readings(state.pos, sp, 5, state.env_ids, step)
         assert d.shape == (64, 6) and np.all(d >= 0.2) and np.all(d <= 3.0)
@@ -184,7 +184,7 @@ def test_every_reading_in_range(sonar):
 def test_no_echo_reads_max_range(error, crosstalk):
     _, arena, sp = setup(n=1, max_range=1.0, error=error, crosstalk=crosstalk, sigma=0.3)
     pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (50, 1, 1)), np.zeros((50, 1)), arena, np.zeros((50, 64)))
-    r, dist, kind, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 1, np.arange(50), 0, return_ideal=True)
+    r, dist, kind, _ = sonar_readings(pos, yaw, th, arena, sp, 1, np.arange(50), 0, return_ideal=True)
     assert (kind == HIT_NONE).all() and np.all(dist == 1.0)
     assert np.all(r == 1.0)
     d = down_readings(pos, sp, 1, np.arange(50), 0, altitude=1.5)
@@ -194,7 +194,7 @@ def test_no_echo_reads_max_range(error, crosstalk):
 def test_ideal_below_min_range_is_clamped_in_readings():
     _, arena, sp = setup(n=2, error="none", crosstalk="off")
     pos, yaw, th = arrays([[1.0, 2.0], [1.32, 2.0]], [0.0, 0.0], arena)
-    r, dist, kind, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
+    r, dist, kind, _ = sonar_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
     assert dist[0, 0, 0] == pytest.approx(0.17, abs=1e-12) and kind[0, 0, 0] == HIT_COPTER
     assert r[0, 0, 0] == 0.2
 
@@ -203,7 +203,7 @@ def _seed_profile_sample(B=5000, sigma=None):
     extra = {} if sigma is None else {"sigma": sigma}
     _, arena, sp = setup(n=1, profile="seed", **extra)
     pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
-    r = ultrasonic_readings(pos, yaw, th, arena, sp, 2024, np.arange(B), 17)
+    r = sonar_readings(pos, yaw, th, arena, sp, 2024, np.arange(B), 17)
     true = np.array([1.5, 2.0, 1.5, 2.0])
     return sp, r[:, 0, :], np.broadcast_to(true, (B, 4))
 
@@ -224,7 +224,7 @@ def test_default_rayleigh_runs_short():
     _, arena, sp = setup(n=1, crosstalk="off", sigma=0.1)
     B = 4000
     pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
-    r = ultrasonic_readings(pos, yaw, th, arena, sp, 9, np.arange(B), 0)[:, 0, :]
+    r = sonar_readings(pos, yaw, th, arena, sp, 9, np.arange(B), 0)[:, 0, :]
     R = -(r - np.array([1.5, 2.0, 1.5, 2.0])) + rayleigh_std(0.1)
     assert stats.kstest(R.ravel(), stats.rayleigh(scale=0.1).cdf).pvalue > 1e-3
     # short on average by (√(π/2) − 0.6551)·σ = 0.0598 m; 16 000 readings: SE (from the sample) ≈ 0.0005 m, 5 SE ≈
@@ -238,7 +238,7 @@ def test_gaussian_moments():
     _, arena, sp = setup(n=1, error="gaussian", crosstalk="off", sigma=0.1)
     B = 4000
     pos, yaw, th = arrays(np.tile([[1.5, 2.0]], (B, 1, 1)), np.zeros((B, 1)), arena, np.zeros((B, 64)))
-    e = (ultrasonic_readings(pos, yaw, th, arena, sp, 3, np.arange(B), 0)[:, 0, :] - [1.5, 2.0, 1.5, 2.0]).ravel()
+    e = (sonar_readings(pos, yaw, th, arena, sp, 3, np.arange(B), 0)[:, 0, :] - [1.5, 2.0, 1.5, 2.0]).ravel()
     assert stats.kstest(e, stats.norm(scale=0.1).cdf).pvalue > 1e-3
 
 
@@ -248,7 +248,7 @@ def test_gaussian_moments():
 def test_geometric_crosstalk_fires_when_facing_in_same_slot():
     _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="simultaneous")
     pos, yaw, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi], arena)
-    r, dist, _, _ = ultrasonic_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
+    r, dist, _, _ = sonar_readings(pos, yaw, th, arena, sp, 0, [0], 0, return_ideal=True)
     assert dist[0, 0, 0] == pytest.approx(0.85) and dist[0, 1, 0] == pytest.approx(0.85)
     assert r[0, 0, 0] == pytest.approx(0.5, abs=1e-12) and r[0, 1, 0] == pytest.approx(0.5, abs=1e-12)
     np.testing.assert_allclose(r[0, :, 1:], dist[0, :, 1:], atol=1e-12)  # no emitter in the other cones
@@ -256,7 +256,7 @@ def test_geometric_crosstalk_fires_when_facing_in_same_slot():
     _, _, spj = setup(n=2, error="rayleigh", crosstalk_jitter=0.02, schedule="simultaneous")
     B = 5000
     pos2, yaw2, th2 = arrays(np.tile(pos, (B, 1, 1)), np.tile(yaw, (B, 1)), arena, np.zeros((B, 64)))
-    rj = ultrasonic_readings(pos2, yaw2, th2, arena, spj, 0, np.arange(B), 0)
+    rj = sonar_readings(pos2, yaw2, th2, arena, spj, 0, np.arange(B), 0)
     x = rj[:, :, 0].ravel()
     # 10 000 readings: SE of the mean σ/√n = 0.0002 m (5 SE = 0.2 % of 0.5 m), of the std σ/√(2(n−1)) = 0.00014 m
     # (5 SE = 3.5 % of the 0.02 m jitter)
@@ -268,11 +268,11 @@ def test_round_robin_different_slots_never_crosstalk():
     pos = [[1.0, 2.0], [2.0, 2.0]]
     _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="round_robin", n_slots=2)
     p, y, th = arrays(pos, [0.0, np.pi], arena)
-    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    r, dist, _, _ = sonar_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
     np.testing.assert_allclose(r, np.clip(dist, 0.2, 3.0), atol=0)
     np.testing.assert_array_equal(fire_slots(sp, 0, [0], 0, 2), [[0, 1]])
     _, arena, sp1 = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="round_robin", n_slots=1)
-    r1 = ultrasonic_readings(p, y, th, arena, sp1, 0, [0], 0)
+    r1 = sonar_readings(p, y, th, arena, sp1, 0, [0], 0)
     assert r1[0, 0, 0] == pytest.approx(0.5)
 
 
@@ -290,15 +290,15 @@ def test_no_crosstalk_without_emitter_in_cone_constructed():
     # narrow cones: B at bearing 45 deg from A lies in none of A's cones
     _, arena, sp = setup(n=2, error="none", crosstalk_jitter=0.0, schedule="simultaneous", cone_half_angle_deg=20.0)
     p, y, th = arrays([[1.0, 2.0], [2.0, 3.0]], [0.0, -3 * np.pi / 4], arena)  # B's front points at A
-    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    r, dist, _, _ = sonar_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
     np.testing.assert_array_equal(r, np.clip(dist, 0.2, 3.0))
     # B in A's front cone but none of B's sonars points toward A (A at 45 deg off every B axis)
     p, y, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi / 4], arena)
-    r, dist, _, _ = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
+    r, dist, _, _ = sonar_readings(p, y, th, arena, sp, 0, [0], 0, return_ideal=True)
     np.testing.assert_array_equal(r, np.clip(dist, 0.2, 3.0))
     # turn B to face A: now it fires
     p, y, th = arrays([[1.0, 2.0], [2.0, 2.0]], [0.0, np.pi], arena)
-    r = ultrasonic_readings(p, y, th, arena, sp, 0, [0], 0)
+    r = sonar_readings(p, y, th, arena, sp, 0, [0], 0)
     assert r[0, 0, 0] == pytest.approx(0.5)
 
 
@@ -307,7 +307,7 @@ def test_no_crosstalk_without_emitter_in_cone_constructed():
 def test_geometric_crosstalk_needs_emitter_in_receiver_cone(scene, half, seed):
     _, arena, sp = setup(n=3, error="none", crosstalk_jitter=0.0, schedule="simultaneous", cone_half_angle_deg=half)
     pos, yaw, th = scene
-    r, dist, _, _ = ultrasonic_readings(pos, yaw, th, arena, sp, seed, [0], 0, return_ideal=True)
+    r, dist, _, _ = sonar_readings(pos, yaw, th, arena, sp, seed, [0], 0, return_ideal=True)
     h = math.radians(half)
     for n in range(3):
         for k in range(4):
@@ -332,8 +332,8 @@ def test_cone_beam_sees_off_axis_copter():
     _, arena, ray = setup(n=2)
     _, _, cone = setup(n=2, beam="cone", beam_rays=7)  # rays every 15 deg across +-45 deg
     p, y, th = arrays([[1.0, 2.0], b], [0.0, np.pi / 2], arena)
-    d_ray, k_ray, _ = ideal_ultrasonic(p, y, th, arena, ray)
-    d_cone, k_cone, h_cone = ideal_ultrasonic(p, y, th, arena, cone)
+    d_ray, k_ray, _ = ideal_sonar(p, y, th, arena, ray)
+    d_cone, k_cone, h_cone = ideal_sonar(p, y, th, arena, cone)
     assert k_ray[0, 0, 0] == HIT_WALL and d_ray[0, 0, 0] == pytest.approx(2.0)
     assert k_cone[0, 0, 0] == HIT_COPTER and d_cone[0, 0, 0] == pytest.approx(0.85, abs=1e-12)
     assert np.hypot(*(h_cone[0, 0, 0] - b)) == pytest.approx(0.15, abs=1e-12)
@@ -346,22 +346,22 @@ def test_same_seed_same_readings_any_batch_and_threads(profile, sonar):
     cfg, arena, sp = setup(n=6, profile=profile, **sonar)
     world = World(cfg)
     state, _ = world.rollout(world.init(64, seed=11), 20, RandomWalk(world.cfg), record=False)
-    full = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
+    full = sonar_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
     down = down_readings(state.pos, sp, 11, state.env_ids, 20)
     for k in (0, 17, 63):
         one = state.select([k])
         assert one.env_ids.tolist() == [k]
-        r1 = ultrasonic_readings(one.pos, one.yaw, one.theta, arena, sp, 11, one.env_ids, 20)
+        r1 = sonar_readings(one.pos, one.yaw, one.theta, arena, sp, 11, one.env_ids, 20)
         np.testing.assert_array_equal(r1[0], full[k])
         np.testing.assert_array_equal(down_readings(one.pos, sp, 11, one.env_ids, 20)[0], down[k])
     threads = numba.get_num_threads()
     try:
         numba.set_num_threads(1)
-        again = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
+        again = sonar_readings(state.pos, state.yaw, state.theta, arena, sp, 11, state.env_ids, 20)
     finally:
         numba.set_num_threads(threads)
     np.testing.assert_array_equal(again, full)
-    other = ultrasonic_readings(state.pos, state.yaw, state.theta, arena, sp, 12, state.env_ids, 20)
+    other = sonar_readings(state.pos, state.yaw, state.theta, arena, sp, 12, state.env_ids, 20)
     if sp.error != 0:
         assert not np.array_equal(other, full)
 
@@ -371,10 +371,10 @@ def test_trajectory_equals_per_step_readings():
     world = World(cfg)
     state = world.init(3, seed=4)
     _, traj = world.rollout(state, 6, RandomWalk(world.cfg))
-    out, dist, kind, hit = ultrasonic_from_trajectory(traj, arena, sp, 4, state.env_ids, 0, return_ideal=True)
+    out, dist, kind, hit = sonar_from_trajectory(traj, arena, sp, 4, state.env_ids, 0, return_ideal=True)
     assert out.shape == (6, 3, 4, 4) and hit.shape == (6, 3, 4, 4, 2)
     for t in range(6):
-        r = ultrasonic_readings(traj.pose[t, ..., :2], traj.pose[t, ..., 2], traj.theta[t], arena, sp, 4,
+        r = sonar_readings(traj.pose[t, ..., :2], traj.pose[t, ..., 2], traj.theta[t], arena, sp, 4,
                                 state.env_ids, t)
         np.testing.assert_array_equal(out[t], r)
 
@@ -547,7 +547,7 @@ def test_ideal_readings_near_corners_and_bent_borders_match_reference(sonar):
         yaw = rng.choice([np.pi / 4, 3 * np.pi / 4, -np.pi / 4, -3 * np.pi / 4, 0.0, np.pi / 2], 8) \
             + rng.normal(0, 0.05, 8)
         th = rng.choice([0.0, 0.4, -0.4, 1.2, np.pi / 2], arena.n_plates)
-        d1, k1, h1 = ideal_ultrasonic(pos[None], yaw[None], th[None], arena, sp)
+        d1, k1, h1 = ideal_sonar(pos[None], yaw[None], th[None], arena, sp)
         d2, k2, h2 = naive_ideal(pos[None], yaw[None], th[None], arena, sp)
         np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-12)
         np.testing.assert_array_equal(k1, k2)

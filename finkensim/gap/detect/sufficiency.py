@@ -1,5 +1,5 @@
-"""What a gap report must not claim: an absurd gap, a confident verdict from too few readings, a fitted value at a
-bound that nobody flags.
+"""Whether the held-out readings can decide anything: no absurd gap, no confident verdict from too few readings
+(what a gap report must not claim; a fitted value at a bound is flagged by :mod:`finkensim.gap.quantify.bounds`).
 
 - :func:`check_plausible`: every sensor's held-out gap is a finite number of plausible size (in units of the
   configured model's own mean absolute error) or the diagnosis stops with a named error: scored readings that the
@@ -7,8 +7,6 @@ bound that nobody flags.
 - :func:`sample_sizes`: per sensor, the held-out readings and the bootstrap blocks that hold them; where they are
   fewer than :data:`MIN_HELDOUT_READINGS` / :data:`MIN_BLOCKS`, the report says "too little data to decide" what
   it cannot decide (whether there is a gap, which effect explains it) instead of a confident verdict.
-- :func:`flag_bounds`: the parameters of each fitted effect at a bound of their range
-  (:func:`~.effects.at_bound`).
 """
 from __future__ import annotations
 
@@ -16,11 +14,10 @@ import math
 
 import numpy as np
 
-from ..attribute import effects as fx
 from ..model.replay import GapInputError
 
 __all__ = ["MAX_PLAUSIBLE_GAP", "MIN_HELDOUT_READINGS", "MIN_BLOCKS", "check_plausible", "sample_sizes",
-           "too_little_data", "flag_bounds"]
+           "too_little_data"]
 
 #: a held-out gap beyond this many times the configured model's mean absolute error is not a measurement
 MAX_PLAUSIBLE_GAP = 100.0
@@ -31,7 +28,7 @@ MIN_BLOCKS = 20
 
 
 def check_plausible(per_sensor: dict) -> None:
-    """Raise a :class:`~.replay.GapInputError` naming the sensor when its held-out gap (``per_sensor[s]["gap"]``,
+    """Raise a :class:`~finkensim.gap.model.replay.GapInputError` naming the sensor when its held-out gap (``per_sensor[s]["gap"]``,
     normalised) is not finite or exceeds :data:`MAX_PLAUSIBLE_GAP` in magnitude."""
     for s, v in per_sensor.items():
         g = float(v["gap"])
@@ -69,16 +66,4 @@ def too_little_data(sizes: dict, significant: dict) -> dict:
         out[s] = (f"too little data to decide {what}: {n['heldout']} held-out readings in {n['blocks']} bootstrap "
                   f"blocks ({n['train']} for training); a decision needs at least {MIN_HELDOUT_READINGS} readings in "
                   f"{MIN_BLOCKS} blocks")
-    return out
-
-
-def flag_bounds(effects: list, base) -> dict:
-    """effect name -> the names of its parameters at a bound of their range, for each effect entry ({name, params,
-    ...}) that has any. (Kept beside the spec's effect entries, which have exactly the spec's keys.)"""
-    out = {}
-    for e in effects:
-        eff = fx.REGISTRY.get(e["name"])
-        names = fx.at_bound(eff, e["params"], base) if eff is not None else []
-        if names:
-            out[e["name"]] = names
     return out

@@ -1,7 +1,7 @@
 """How much of a held-out gap a model explains, in a way that a wider predictive cannot fake.
 
 Two numbers describe a model F on the held-out readings of the sensors with a significant gap (each a
-mean over those sensors of the per-reading mean, normalised as in :mod:`.diagnose`):
+mean over those sensors of the per-reading mean, normalised as in :mod:`~finkensim.gap.diagnosis`):
 
 - its **calibration gap** c(F) = E|X − y| − E|X − X'| (zero on average when the readings could have come
   from F), and
@@ -14,7 +14,7 @@ right; it cannot lower S(F) below that of a predictive closer to reality (propri
     shrink(F) = min( 1 − |c(F)| / c(F₀),  −(S(F) − S(F₀)) / c(F₀) )             if S(F) > S(F₀)
 
 where F₀ is the configured model and S_min the best score of every predictive the diagnosis built from
-the catalogue (each effect, refit and combination; for the data-driven correction of :mod:`.correction`,
+the catalogue (each effect, refit and combination; for the data-driven correction of :mod:`~finkensim.gap.quantify.correction`,
 also the correction itself). The score term of a model that scores *worse* than F₀ is its score penalty in
 units of the gap (a predictive that moves by δ scores worse by about as much as its gap grows, so the penalty
 reads as gap added): a ratio to S(F₀) − S_min would divide by ≈ 0 whenever nothing beats the configured model

@@ -1,4 +1,4 @@
-"""Plain-NumPy reference of the ultrasonic sensors (``finkensim.sensors.ultrasonic``), for tests only.
+"""Plain-NumPy reference of the sonars (``finkensim.sensors.sonar``), for tests only.
 
 Readable loops, no numba of its own. It takes the wall plates from ``Arena.plate_surfaces`` and the
 same counter-based random numbers as the kernels, from ``finkensim.kernels.rng.uniforms_array`` /
@@ -6,11 +6,11 @@ same counter-based random numbers as the kernels, from ``finkensim.kernels.rng.u
 docstring of the kernel), so it agrees with the kernels to rounding.
 
 What it shares and why: the plate geometry (``Arena.plate_surfaces``: where a bent plate is) and the random-number
-layout (which uniform feeds which error) are the model's definitions, so this twin restates them to check the
+layout (which uniform feeds which error) are the model's definitions, so this reference restates them to check the
 kernels' loops, culling and draw bookkeeping — it cannot catch a wrong definition. Those are checked elsewhere
 against references that share nothing: the ray cast against a closed form of rectangle walls and circles
 (``tests/test_edges.py::test_ideal_sonar_equals_an_independent_closed_form``), the error laws against scipy's
-Rayleigh and normal distributions (KS tests in ``tests/test_ultrasonic.py`` and notebook 02), the random numbers
+Rayleigh and normal distributions (KS tests in ``tests/test_sonar.py`` and notebook 02), the random numbers
 against published SplitMix64 outputs (``tests/test_rng.py``).
 """
 from __future__ import annotations
@@ -98,7 +98,7 @@ def naive_sonar_poses(pos_b, yaw_b, sp):
 
 
 def naive_ideal(pos, yaw, theta, arena, sp):
-    """Reference of ``ideal_ultrasonic``: (dist (B,N,4), hit_type (B,N,4), hit_xy (B,N,4,2))."""
+    """Reference of ``ideal_sonar``: (dist (B,N,4), hit_type (B,N,4), hit_xy (B,N,4,2))."""
     pos = np.asarray(pos, dtype=float)
     B, N, _ = pos.shape
     PA, PB = arena.plate_surfaces(np.asarray(theta, dtype=float))
@@ -196,7 +196,7 @@ def naive_crosstalk_path(n, k, poses, slots, sp):
 
 
 def naive_readings(pos, yaw, theta, arena, sp, seed, env_ids, step):
-    """Reference of ``ultrasonic_readings`` (B, N, 4)."""
+    """Reference of ``sonar_readings`` (B, N, 4)."""
     pos = np.asarray(pos, dtype=float)
     B, N, _ = pos.shape
     dist, kind, _ = naive_ideal(pos, yaw, theta, arena, sp)
