@@ -42,7 +42,7 @@ def test_file_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize("change,match", [
-    (lambda d: d.update(version=2), "version = 2: expected 1"),
+    (lambda d: d.update(version=3), "version = 3: expected one of 1, 2"),
     (lambda d: d.update(format="x"), "format = 'x'"),
     (lambda d: d["sensors"]["ultrasonic"].update(edges=[0.0]), "edges"),
     (lambda d: d["sensors"]["ultrasonic"].update(levels=[0.5, 0.2, 0.9]), "levels"),
