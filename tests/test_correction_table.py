@@ -39,6 +39,20 @@ def test_file_round_trip(tmp_path):
     back = read_correction(path, "ultrasonic")
     for a, b in zip(t, back):
         np.testing.assert_array_equal(a, b)
+    assert json.loads(path.read_text())["version"] == 1  # no per-channel entry: older readers still read it
+
+
+def test_channel_tables_round_trip_as_version_2(tmp_path):
+    from finkensim.sensors.correction_table import ChannelTables
+
+    rng = np.random.default_rng(3)
+    entry = ChannelTables({"a": _table(rng, 2, 4)._replace(unit="m/s"), "b": _table(rng, 3, 4)._replace(unit="rad")},
+                          0.75)
+    path = write_correction(tmp_path / "c.json", {"imu": entry, "ultrasonic": _table(rng, 1, 4)})
+    assert json.loads(path.read_text())["version"] == 2
+    back = read_correction(path, "imu", channels=("b", "a"))
+    assert back.window == 0.75 and back.channels["a"].unit == "m/s" and back.channels["b"].unit == "rad"
+    np.testing.assert_array_equal(back.channels["b"].quantiles, entry.channels["b"].quantiles)
 
 
 @pytest.mark.parametrize("change,match", [
