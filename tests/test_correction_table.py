@@ -131,3 +131,21 @@ def test_residual_table_holds_the_binned_quantiles():
     lo = corrected_reference(np.array([0.2]), np.array([0.5]), t)[0] - 0.2
     hi = corrected_reference(np.array([1.8]), np.array([0.5]), t)[0] - 1.8
     assert abs(lo) < 0.01 and abs(hi - 0.2) < 0.01
+
+
+def test_the_imu_correction_is_exported_per_channel():
+    """The IMU's channels have their own units and scales: one table each (dv_x, dv_y m/s, dyaw rad), with the
+    window; none when a channel has no training reading."""
+    from finkensim.gap.quantify.correction import channel_tables
+
+    rng = np.random.default_rng(2)
+    channel = rng.integers(0, 3, 6000)
+    med = rng.normal(0.0, 1.0, channel.size)
+    r = np.where(channel == 2, 0.01, 0.5) * rng.normal(0.0, 1.0, channel.size)
+    levels = (np.arange(9) + 0.5) / 9
+    t = channel_tables(med, r, channel, 1.0, levels)
+    assert list(t.channels) == ["dv_x", "dv_y", "dyaw"] and t.window == 1.0
+    assert [c.unit for c in t.channels.values()] == ["m/s", "m/s", "rad"]
+    spread = {k: c.quantiles[:, -1].mean() - c.quantiles[:, 0].mean() for k, c in t.channels.items()}
+    assert spread["dyaw"] < 0.1 < spread["dv_x"]
+    assert channel_tables(med[channel < 2], r[channel < 2], channel[channel < 2], 1.0, levels) is None
