@@ -24,7 +24,7 @@ from ...sensors.correction_table import ChannelTables, CorrectionTable
 from ...sensors.imu_correction import IMU_CHANNELS, IMU_UNITS
 from ..model.scoring import brier, ensemble_terms
 
-__all__ = ["Correction", "fit_correction", "residual_table", "QUANTILES"]
+__all__ = ["Correction", "fit_correction", "residual_table", "channel_tables", "QUANTILES"]
 
 QUANTILES = 19  # quantile levels of the correction's predictive distribution
 MAX_TRAIN_ROWS = 20000
