@@ -212,8 +212,8 @@ class RangingConfig(_Section):
     dropout_a: float = _f(-100.0, "", -100.0, 100.0, doc="a reading is lost (NaN) with probability "
                           "sigmoid(dropout_a + dropout_b*distance); -100 = never (ranging_dropout)")
     dropout_b: float = _f(0.0, "1/m", -100.0, 100.0, doc="distance slope of the dropout probability")
-    latency: float = _f(0.0, "s", 0.0, 2.0, doc="ranging latency: each reading describes the world this long earlier, "
-                        "in whole simulation steps (the gap effect latency fits it; 0 = none)")
+    latency: float = _f(0.0, "s", 0.0, 2.0, doc="ranging latency: each reading describes the world this long earlier, in whole simulation steps (the gap effect latency fits it; 0 = none)")
+    correction_file: str = _f("", doc="a learned correction of the ranging readings (JSON table with a 'ranging' table, written by finkensim gap --out beside calibrated.toml: docs/calibration.md); empty = none")
 
 
 @dataclass(frozen=True)
@@ -229,8 +229,8 @@ class ImuConfig(_Section):
     acc_bias: tuple[float, ...] = _f((0.0, 0.0), "m/s^2", -20.0, 20.0, length=2,
                                      doc="constant body-frame accelerometer bias (x, y) (the gap effect imu_bias fits it)")
     gyro_bias: float = _f(0.0, "rad/s", -10.0, 10.0, doc="constant gyro bias (the gap effect imu_bias fits it)")
-    latency: float = _f(0.0, "s", 0.0, 2.0, doc="IMU latency: each sample describes the motion this long earlier, in "
-                        "whole simulation steps (the gap effect latency fits it; 0 = none)")
+    latency: float = _f(0.0, "s", 0.0, 2.0, doc="IMU latency: each sample describes the motion this long earlier, in whole simulation steps (the gap effect latency fits it; 0 = none)")
+    correction_file: str = _f("", doc="a learned correction of the IMU (JSON table with an 'imu' table per channel, written by finkensim gap --out beside calibrated.toml: docs/calibration.md); empty = none")
 
 
 @dataclass(frozen=True)

@@ -114,6 +114,37 @@ def test_effects_without_a_counterpart_are_listed_not_flown(sonar_bias_report, m
     assert "NOT FLOWN: wall_bulge" in calibrated_toml(other)
 
 
+def test_every_learned_correction_is_flown_and_referenced(sonar_bias_report, tmp_path):
+    """A report whose learned correction has tables of the sonars, the ranging, the IMU and a sensor the simulator
+    does not know: calibrated.toml references correction.json (version 2) from each known sensor's key, lists only the
+    unknown sensor's table as NOT FLOWN, and the file loads and flies."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from finkensim.config import load_config as load
+    from finkensim.gap.quantify.calibrate import calibrated_toml, correction_files, write_calibrated
+    from finkensim.sensors.correction_table import ChannelTables, CorrectionTable, read_correction
+
+    report, cfg, _ = sonar_bias_report
+    one = CorrectionTable(np.array([-5.0, 5.0]), np.array([0.25, 0.75]), np.array([[-0.01, 0.01]]))
+    tables = {"ultrasonic": one, "ranging": one, "baro": one,
+              "imu": ChannelTables({c: one for c in ("dv_x", "dv_y", "dyaw")}, 1.0)}
+    corr = SimpleNamespace(tables=tables, method="test")
+    other = replace(report, details=replace(report.details, correction=corr))
+    path = write_calibrated(other, tmp_path / "calibrated.toml")
+    text = path.read_text()
+    assert "NOT FLOWN: the learned correction of baro" in text and "correction of ranging" in text
+    assert text.count("NOT FLOWN") == 1 and "learned correction of imu (residual quantiles" in text
+    cal = load(path)
+    keys = correction_files(cal)
+    assert sorted(keys) == ["imu.correction_file", "ranging.correction_file", "sonar.correction_file"]
+    assert set(keys.values()) == {str((tmp_path / "correction.json").resolve())}
+    assert sorted(read_correction(tmp_path / "correction.json")) == ["baro", "imu", "ranging", "ultrasonic"]
+    log, _, _ = fs.simulate_flight(cal.replace({"copters.n": 3}), duration=0.5, seed=1)
+    assert np.isfinite(log.imu_acc).all() and np.isfinite(log.ranging).any()
+    assert "NOT FLOWN" not in calibrated_toml(report)  # no correction: nothing to list
+
+
 def test_a_report_without_its_config_says_why():
     from dataclasses import replace
 

@@ -39,10 +39,24 @@ def test_file_round_trip(tmp_path):
     back = read_correction(path, "ultrasonic")
     for a, b in zip(t, back):
         np.testing.assert_array_equal(a, b)
+    assert json.loads(path.read_text())["version"] == 1  # no per-channel entry: older readers still read it
+
+
+def test_channel_tables_round_trip_as_version_2(tmp_path):
+    from finkensim.sensors.correction_table import ChannelTables
+
+    rng = np.random.default_rng(3)
+    entry = ChannelTables({"a": _table(rng, 2, 4)._replace(unit="m/s"), "b": _table(rng, 3, 4)._replace(unit="rad")},
+                          0.75)
+    path = write_correction(tmp_path / "c.json", {"imu": entry, "ultrasonic": _table(rng, 1, 4)})
+    assert json.loads(path.read_text())["version"] == 2
+    back = read_correction(path, "imu", channels=("b", "a"))
+    assert back.window == 0.75 and back.channels["a"].unit == "m/s" and back.channels["b"].unit == "rad"
+    np.testing.assert_array_equal(back.channels["b"].quantiles, entry.channels["b"].quantiles)
 
 
 @pytest.mark.parametrize("change,match", [
-    (lambda d: d.update(version=2), "version = 2: expected 1"),
+    (lambda d: d.update(version=3), "version = 3: expected one of 1, 2"),
     (lambda d: d.update(format="x"), "format = 'x'"),
     (lambda d: d["sensors"]["ultrasonic"].update(edges=[0.0]), "edges"),
     (lambda d: d["sensors"]["ultrasonic"].update(levels=[0.5, 0.2, 0.9]), "levels"),
@@ -117,3 +131,21 @@ def test_residual_table_holds_the_binned_quantiles():
     lo = corrected_reference(np.array([0.2]), np.array([0.5]), t)[0] - 0.2
     hi = corrected_reference(np.array([1.8]), np.array([0.5]), t)[0] - 1.8
     assert abs(lo) < 0.01 and abs(hi - 0.2) < 0.01
+
+
+def test_the_imu_correction_is_exported_per_channel():
+    """The IMU's channels have their own units and scales: one table each (dv_x, dv_y m/s, dyaw rad), with the
+    window; none when a channel has no training reading."""
+    from finkensim.gap.quantify.correction import channel_tables
+
+    rng = np.random.default_rng(2)
+    channel = rng.integers(0, 3, 6000)
+    med = rng.normal(0.0, 1.0, channel.size)
+    r = np.where(channel == 2, 0.01, 0.5) * rng.normal(0.0, 1.0, channel.size)
+    levels = (np.arange(9) + 0.5) / 9
+    t = channel_tables(med, r, channel, 1.0, levels)
+    assert list(t.channels) == ["dv_x", "dv_y", "dyaw"] and t.window == 1.0
+    assert [c.unit for c in t.channels.values()] == ["m/s", "m/s", "rad"]
+    spread = {k: c.quantiles[:, -1].mean() - c.quantiles[:, 0].mean() for k, c in t.channels.items()}
+    assert spread["dyaw"] < 0.1 < spread["dv_x"]
+    assert channel_tables(med[channel < 2], r[channel < 2], channel[channel < 2], 1.0, levels) is None

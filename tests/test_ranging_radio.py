@@ -60,7 +60,7 @@ def test_radio_batch_equals_the_reference(radio, seed, data_seed):
     clear = rng.uniform(0.0, 1.0, n)
     key = row_key(seed, 0, 0, 0)
     out = np.empty((n, M))
-    radio_batch(y0, x, a, b, clear, key, 2.0, model.params, out)
+    radio_batch(y0, x, a, b, clear, key, row_key(seed, 0, 0, 1), 2.0, model.params, out)
     want = np.array([[2.0 if x[i, m] > 2.0 else naive_shift(y0[i, m], a[i], b[i], clear[i], key, i * M + m,
                                                               model.radio) for m in range(M)] for i in range(n)])
     np.testing.assert_allclose(out, want, rtol=0, atol=1e-12)

@@ -35,6 +35,8 @@ STREAM_EFFECT = 8
 STREAM_SONAR_SCHEDULE = 9
 STREAM_TRACKING = 10  # the flight-log writer's tracking noise (sensors.tracking)
 STREAM_CORRECTION = 20  # the learned correction's draws (sensors.correction_table)
+STREAM_CORRECTION_RANGING = 21  # the learned ranging correction's draws (sensors.ranging_radio)
+STREAM_CORRECTION_IMU = 22  # the learned IMU correction's draws (sensors.imu)
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)

@@ -12,18 +12,25 @@ sonar) on its own stream (``finkensim.kernels.rng.STREAM_CORRECTION``). The corr
 the error model's for every reading with an echo (the table was fitted on the readings the model explained
 badly, noise included); readings without an echo stay ``max_range``.
 
-**File format** (JSON, version 1)::
+The ranging readings (``ranging.correction_file``, :func:`~finkensim.sensors.ranging_radio.corrected_reading`) and
+the IMU (``imu.correction_file``, :mod:`finkensim.sensors.imu_correction`) apply their tables the same way, each on
+its own random stream.
 
-    {"format": "finkensim-correction", "version": 1,
+**File format** (JSON, version 2; version 1 files are read as they are)::
+
+    {"format": "finkensim-correction", "version": 2,
      "sensors": {"ultrasonic": {"feature": "model_median", "unit": "m",
                                 "edges": [G + 1 increasing numbers],
                                 "levels": [Q increasing numbers in (0, 1)],
-                                "quantiles": [G rows of Q non-decreasing numbers]}},
+                                "quantiles": [G rows of Q non-decreasing numbers]},
+                 "ranging": {... one table as above ...},
+                 "imu": {"window": W, "channels": {"dv_x": {...}, "dv_y": {...}, "dyaw": {...}}}},
      "source": {...free-form: the diagnosis it came from}}
 
-Only the ``ultrasonic`` table is flown (the horizontal sonars); tables of other sensors may be present and are
-listed as not flown. Every entry is checked on read, and a bad one is a :class:`CorrectionFileError` naming the file,
-the key, the value and what was expected.
+Version 2 adds a sensor entry with one table per channel (:class:`ChannelTables`: the IMU's window integrals,
+whose channels have different units and scales) and the optional ``unit`` of a table; a file without such an entry
+is written as version 1, so older readers still read it. Every entry is checked on read, and a bad one is a
+:class:`CorrectionFileError` naming the file, the key, the value and what was expected.
 """
 from __future__ import annotations
 
@@ -38,11 +45,16 @@ from ..config import ConfigError
 from ..kernels.raycast import HIT_NONE
 from ..kernels.rng import STREAM_CORRECTION, counter_key, uniform
 
-__all__ = ["FORMAT", "VERSION", "CorrectionTable", "CorrectionFileError", "read_correction", "write_correction",
-           "correction_quantile", "correct_readings_env", "corrected_reference"]
+__all__ = ["FORMAT", "VERSION", "READS", "ChannelTables", "CorrectionTable", "CorrectionFileError", "read_correction",
+           "write_correction", "correction_quantile", "correct_readings_env", "corrected_reference", "NO_TABLE"]
 
 FORMAT = "finkensim-correction"
-VERSION = 1
+VERSION = 2
+#: the file versions this finkensim reads (1: one table per sensor; 2: also a table per channel)
+READS = (1, 2)
+#: the packed form of "no correction" (a kernel's record field when the config names no file)
+NO_TABLE = np.zeros((0, 0))
+NO_TABLE.setflags(write=False)
 
 
 class CorrectionFileError(ConfigError):
@@ -50,12 +62,13 @@ class CorrectionFileError(ConfigError):
 
 
 class CorrectionTable(NamedTuple):
-    """One sensor's table: edges (G + 1,) of the feature ``model_median`` (m), levels (Q,) in (0, 1), quantiles
-    (G, Q) m of the residual in each bin."""
+    """One sensor's table: edges (G + 1,) of the feature ``model_median`` (in ``unit``: m for the sonars and the
+    ranging), levels (Q,) in (0, 1), quantiles (G, Q) of the residual in each bin (same unit)."""
 
     edges: np.ndarray
     levels: np.ndarray
     quantiles: np.ndarray
+    unit: str = "m"
 
     def packed(self) -> np.ndarray:
         """The table as one (G + 1, Q + 1) array for the kernels: column 0 the edges, row 0 from column 1 the
@@ -69,8 +82,20 @@ class CorrectionTable(NamedTuple):
 
     def to_json(self) -> dict:
         """The table's entry of the file format."""
-        return {"feature": "model_median", "unit": "m", "edges": self.edges.tolist(), "levels": self.levels.tolist(),
-                "quantiles": self.quantiles.tolist()}
+        return {"feature": "model_median", "unit": self.unit, "edges": self.edges.tolist(),
+                "levels": self.levels.tolist(), "quantiles": self.quantiles.tolist()}
+
+
+class ChannelTables(NamedTuple):
+    """A sensor's tables per channel (file format version 2): ``channels`` {name: :class:`CorrectionTable`} and
+    ``window`` s, the span each of its readings integrates (the IMU's window integrals; 0 = single readings)."""
+
+    channels: dict
+    window: float = 0.0
+
+    def to_json(self) -> dict:
+        """The entry of the file format."""
+        return {"window": float(self.window), "channels": {k: t.to_json() for k, t in self.channels.items()}}
 
 
 def _numbers(where: str, value, shape_text: str, ndim: int) -> np.ndarray:
@@ -83,6 +108,19 @@ def _numbers(where: str, value, shape_text: str, ndim: int) -> np.ndarray:
     if not np.isfinite(a).all():
         raise CorrectionFileError(f"{where} holds a non-finite value: expected finite numbers")
     return a
+
+
+def _entry(where: str, entry):
+    """A sensor's entry: a :class:`CorrectionTable` or, with ``channels``, a :class:`ChannelTables`."""
+    if not (isinstance(entry, dict) and "channels" in entry):
+        return _table(where, entry)
+    chans = entry["channels"]
+    if not isinstance(chans, dict) or not chans:
+        raise CorrectionFileError(f"{where}.channels = {str(chans)[:60]}: expected a table per channel")
+    window = entry.get("window", 0.0)
+    if isinstance(window, bool) or not isinstance(window, (int, float)) or not (0.0 <= window < float("inf")):
+        raise CorrectionFileError(f"{where}.window = {window!r}: expected a finite number >= 0 s")
+    return ChannelTables({k: _table(f"{where}.channels.{k}", t) for k, t in chans.items()}, float(window))
 
 
 def _table(where: str, entry) -> CorrectionTable:
@@ -105,13 +143,17 @@ def _table(where: str, entry) -> CorrectionTable:
                                   f"({edges.size - 1}, {levels.size}) for its edges and levels")
     if not (np.diff(q, axis=1) >= 0).all():
         raise CorrectionFileError(f"{where}.quantiles: a row decreases; expected non-decreasing quantiles per bin")
-    return CorrectionTable(np.ascontiguousarray(edges), np.ascontiguousarray(levels), np.ascontiguousarray(q))
+    unit = entry.get("unit", "m")
+    if not isinstance(unit, str):
+        raise CorrectionFileError(f"{where}.unit = {unit!r}: expected a string")
+    return CorrectionTable(np.ascontiguousarray(edges), np.ascontiguousarray(levels), np.ascontiguousarray(q), unit)
 
 
-def read_correction(path: str | Path, sensor: str | None = None, key: str = "correction file"):
-    """The tables of the correction file ``path``: {sensor: :class:`CorrectionTable`}, or one sensor's table when
-    ``sensor`` is given (a :class:`CorrectionFileError` when the file has none). ``key`` names the setting the
-    path came from in messages."""
+def read_correction(path: str | Path, sensor: str | None = None, key: str = "correction file", channels=None):
+    """The tables of the correction file ``path``: {sensor: :class:`CorrectionTable` or :class:`ChannelTables`}, or
+    one sensor's entry when ``sensor`` is given (a :class:`CorrectionFileError` when the file has none). ``key``
+    names the setting the path came from in messages. ``channels`` (names): the sensor's entry must be a
+    :class:`ChannelTables` with exactly these channels (None: a single :class:`CorrectionTable`)."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -122,25 +164,38 @@ def read_correction(path: str | Path, sensor: str | None = None, key: str = "cor
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
         raise CorrectionFileError(f"{path}: format = {got!r}: expected {FORMAT!r}")
-    if data.get("version") != VERSION:
-        raise CorrectionFileError(f"{path}: version = {data.get('version')!r}: expected {VERSION} (this finkensim "
-                                  "reads version 1 tables)")
+    if data.get("version") not in READS:
+        raise CorrectionFileError(f"{path}: version = {data.get('version')!r}: expected one of "
+                                  f"{', '.join(map(str, READS))} (the versions this finkensim reads)")
     sensors = data.get("sensors")
     if not isinstance(sensors, dict) or not sensors:
         raise CorrectionFileError(f"{path}: sensors = {str(sensors)[:60]}: expected a table per sensor")
-    tables = {name: _table(f"{path}: sensors.{name}", entry) for name, entry in sensors.items()}
+    if data["version"] == 1 and any(isinstance(e, dict) and "channels" in e for e in sensors.values()):
+        raise CorrectionFileError(f"{path}: version = 1 with a table per channel: expected version 2")
+    tables = {name: _entry(f"{path}: sensors.{name}", entry) for name, entry in sensors.items()}
     if sensor is None:
         return tables
     if sensor not in tables:
         raise CorrectionFileError(f"{key} = {str(path)!r}: the file has no {sensor!r} table (it has "
                                   f"{', '.join(sorted(tables))})")
-    return tables[sensor]
+    got = tables[sensor]
+    if channels is None and isinstance(got, ChannelTables):
+        raise CorrectionFileError(f"{key} = {str(path)!r}: sensors.{sensor} holds a table per channel "
+                                  f"({', '.join(got.channels)}): expected one table")
+    if channels is not None:
+        have = f"channels {', '.join(got.channels)}" if isinstance(got, ChannelTables) else "one table"
+        if not isinstance(got, ChannelTables) or sorted(got.channels) != sorted(channels):
+            raise CorrectionFileError(f"{key} = {str(path)!r}: sensors.{sensor} holds {have}: expected a table for "
+                                      f"each of {', '.join(channels)}")
+    return got
 
 
 def write_correction(path: str | Path, tables: dict, source: dict | None = None) -> Path:
-    """Write {sensor: :class:`CorrectionTable`} as a version-1 correction file (atomically); returns the path."""
+    """Write {sensor: :class:`CorrectionTable` or :class:`ChannelTables`} as a correction file (atomically; version 1
+    when no entry has channels, else 2); returns the path."""
     path = Path(path)
-    data = {"format": FORMAT, "version": VERSION, "sensors": {k: t.to_json() for k, t in tables.items()},
+    version = VERSION if any(isinstance(t, ChannelTables) for t in tables.values()) else 1
+    data = {"format": FORMAT, "version": version, "sensors": {k: t.to_json() for k, t in tables.items()},
             "source": source or {}}
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(data, indent=1))

@@ -38,6 +38,9 @@ Randomness: all draws of copter n in environment e at step k come from the count
 3, 4, 5 are ξ (acc x, acc y, gyro), and normals 6, 7, 8 of the switch-on step are the turn-on bias.
 Results therefore depend only on (seed, environment index, step, copter) — never on batch size,
 thread count or call order.
+
+A learned correction (``imu.correction_file``, :mod:`finkensim.sensors.imu_correction`) replaces the white noise and
+the bias random walk of the readings (the bias state still advances) by the correction's draws, on its own stream.
 """
 from __future__ import annotations
 
@@ -49,6 +52,7 @@ from numba import njit, prange
 
 from ..config import ConfigError, ImuConfig
 from ..kernels.rng import STREAM_IMU, counter_key, normal
+from .imu_correction import NO_IMU_TABLE, corrected_imu, imu_correction
 
 #: Indices of the normals inside one (seed, env, step, copter, STREAM_IMU) cell.
 NOISE_INDEX = 0  # 0, 1, 2: white noise of acc x, acc y, gyro
@@ -66,6 +70,9 @@ class ImuModel(NamedTuple):
     dt: sample period, s (the world step).
     acc_bias_x, acc_bias_y: constant body-frame accelerometer bias, m/s²; gyro_bias: constant gyro bias, rad/s
     (config ``imu.acc_bias``, ``imu.gyro_bias``; the gap effect ``imu_bias`` fits them). 0 changes nothing.
+    correction: the learned correction's tables (3, G + 1, Q + 1) of the channels dv_x, dv_y, dyaw
+    (:func:`~finkensim.sensors.imu_correction.pack_channels`; (0, 0, 0) = none) and correction_window s their window
+    (config ``imu.correction_file``).
     """
 
     acc_sigma: float
@@ -76,6 +83,8 @@ class ImuModel(NamedTuple):
     acc_bias_x: float = 0.0
     acc_bias_y: float = 0.0
     gyro_bias: float = 0.0
+    correction: np.ndarray = NO_IMU_TABLE
+    correction_window: float = 0.0
 
     @classmethod
     def from_densities(cls, acc_noise_density: float, acc_bias_walk: float, gyro_noise_density: float,
@@ -97,8 +106,9 @@ class ImuModel(NamedTuple):
         """
         model = cls.from_densities(imu.acc_noise_density, imu.acc_bias_walk, imu.gyro_noise_density,
                                    imu.gyro_bias_walk, dt)
+        table, window = imu_correction(imu.correction_file)
         return model._replace(acc_bias_x=float(imu.acc_bias[0]), acc_bias_y=float(imu.acc_bias[1]),
-                              gyro_bias=float(imu.gyro_bias))
+                              gyro_bias=float(imu.gyro_bias), correction=table, correction_window=window)
 
 
 class ImuState(NamedTuple):
@@ -147,14 +157,22 @@ def imu_env(acc_world, yaw, yaw_rate, bias, params, seed, env_id, step, out_acc,
     acc_world (N, 2) m/s² world frame; yaw, yaw_rate (N,); bias (N, 3) updated in place
     (b_k → b_{k+1}); writes out_acc (N, 2) m/s² body frame (x forward, y left) and out_gyro (N,) rad/s.
     The constant biases of ``params`` add to the drifting ones (only when non-zero: adding 0 would turn a −0.0
-    reading into +0.0).
+    reading into +0.0). With a learned correction (``params.correction``) the readings are
+    :func:`~finkensim.sensors.imu_correction.corrected_imu` instead, and the bias still advances.
     """
+    corrected = params.correction.shape[0] > 0
     for n in range(acc_world.shape[0]):
         key = counter_key(seed, env_id, step, n, STREAM_IMU)
         c = np.cos(yaw[n])
         s = np.sin(yaw[n])
         ax = acc_world[n, 0]
         ay = acc_world[n, 1]
+        if corrected:
+            out_acc[n, 0], out_acc[n, 1], out_gyro[n] = corrected_imu(ax, ay, yaw_rate[n], c, s, params, seed, env_id,
+                                                                      step, n)
+            for ch in range(3):
+                bias[n, ch] += (params.gyro_walk if ch == 2 else params.acc_walk) * normal(key, WALK_INDEX + ch)
+            continue
         bx = bias[n, 0] + params.acc_bias_x if params.acc_bias_x != 0.0 else bias[n, 0]
         by = bias[n, 1] + params.acc_bias_y if params.acc_bias_y != 0.0 else bias[n, 1]
         bg = bias[n, 2] + params.gyro_bias if params.gyro_bias != 0.0 else bias[n, 2]

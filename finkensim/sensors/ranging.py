@@ -21,6 +21,8 @@ Copter ``i`` measures its distance to every other copter and to every beacon. Fo
   ``none``
       X.
 
+- with a learned correction (``ranging.correction_file``) a reading in range is the model's median reading plus
+  the correction's quantile at a uniform draw instead (:func:`~finkensim.sensors.ranging_radio.corrected_reading`);
 - a drawn reading below 0 is set to 0: a range cannot be negative, and the sensor reports 0 for a
   tag on top of it. (With Parlow's mixture this practically never happens: the smallest component
   mean of the measured distance is 0.256 m.) Readings above ``max_range`` caused by the error are
@@ -53,6 +55,7 @@ from ..config import ConfigError
 from .mixture import Mixture, MixtureError
 from .ranging_kernels import (MODE_GAUSSIAN, MODE_MIXTURE, MODE_NONE, MODE_SEED, MODES, RangingParams,
                               ranging_batch, row_key, sample_readings)
+from .correction_table import NO_TABLE, CorrectionTable, read_correction
 from .ranging_radio import RadioParams, neutral_radio
 from .ranging_table import ResponsibilityTable, cached_table
 
@@ -81,13 +84,15 @@ class RangingModel:
     (``gaussian``); ``mixture``: a :class:`Mixture` (default :meth:`Mixture.default`; only loaded for
     mixture/seed); ``seed_variance_factor`` (``seed``); ``beacons``: (M, 2) fixed tags in m;
     ``table_tol``: the table's total-variation tolerance. ``table`` is the :class:`ResponsibilityTable`
-    in mixture mode, else None. ``params`` is the kernels' :class:`RangingParams`, ``ideal_params`` the
-    same with mode ``none`` (readings = true distances, no random numbers used).
+    in mixture mode, else None. ``correction``: the learned correction's
+    :class:`~finkensim.sensors.correction_table.CorrectionTable` (None = none). ``params`` is the kernels'
+    :class:`RangingParams`, ``ideal_params`` the same with mode ``none`` (readings = true distances, no random numbers
+    used).
     """
 
     def __init__(self, error: str = "mixture", max_range: float = 2.5, sigma: float = 0.1,
                  mixture: Mixture | None = None, seed_variance_factor: float = 10.0, beacons=(),
-                 table_tol: float = 1e-4, **radio):
+                 table_tol: float = 1e-4, correction: CorrectionTable | None = None, **radio):
         if error not in MODES:
             raise ValueError(f"ranging.error = {error!r}: expected one of {', '.join(map(repr, MODES))}")
         if not (max_range > 0 and math.isfinite(max_range)):
@@ -110,8 +115,10 @@ class RangingModel:
         if unknown:
             raise TypeError(f"RangingModel: unknown radio effect {unknown[0]!r}; expected one of {RADIO_KEYS}")
         self.radio = {**RADIO_DEFAULTS, **radio}
+        self.correction = correction
         self.params = self._params()
-        self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE), **neutral_radio()._asdict())
+        self.ideal_params = self.params._replace(mode=np.int64(MODE_NONE), **neutral_radio()._asdict(),
+                                                 correction=NO_TABLE)
 
     def with_radio(self, **changes) -> "RangingModel":
         """A copy with the given radio effects (keys of ``RADIO_KEYS``, units as the ``[ranging]`` config keys
@@ -119,29 +126,43 @@ class RangingModel:
         new = object.__new__(type(self))
         new.__dict__.update(self.__dict__)
         new.radio = {**self.radio, **changes}
-        new.params = self.params._replace(**radio_params(new.radio)._asdict())
+        new.params = self.params._replace(**self._radio_fields(new.radio))
         return new
+
+    def _radio_fields(self, radio: dict) -> dict:
+        """The radio fields of the kernels' record for the effects ``radio``; ``radio_on`` also with a correction
+        (the correction runs on the radio path)."""
+        fields = radio_params(radio)._asdict()
+        if self.correction is not None:
+            fields["radio_on"] = np.int64(1)
+        return fields
 
     def noise_key(self) -> tuple:
         """A hashable key of the error model alone (what :meth:`sample` depends on; the radio effects left out)."""
         return ("RangingModel", self.error, self.max_range, self.sigma, self.seed_variance_factor, id(self.mixture))
 
     def radio_key(self) -> tuple:
-        """A hashable key of the radio effects (canonical: trailing zero delays and offsets dropped)."""
+        """A hashable key of the radio effects (canonical: trailing zero delays and offsets dropped) and of the
+        learned correction, if any."""
         r = radio_params(self.radio)
-        return tuple(v.tobytes() if isinstance(v, np.ndarray) else float(v) for v in r)
+        key = tuple(v.tobytes() if isinstance(v, np.ndarray) else float(v) for v in r)
+        return key if self.correction is None else key + (self.params.correction.tobytes(),)
 
     def __setstate__(self, state):
         # pickle (process pools, Dask, deepcopy) restores every array writeable; the kernels' records must keep their
         # read-only arrays, or each compiled kernel that takes them (the whole closed-loop engine among them) is
         # compiled again for the second type: ≈ 30 s in each worker process of a sweep
+        self.__dict__.setdefault("correction", None)
         self.__dict__.update(state)
         self.params = _readonly_params(self.params)
         self.ideal_params = _readonly_params(self.ideal_params)
 
     @classmethod
     def from_config(cls, cfg, mixture: Mixture | None = None, table_tol: float = 1e-4) -> "RangingModel":
-        """From a ``RangingConfig`` (``cfg.ranging``); ``mixture_file`` is loaded unless ``mixture`` is given."""
+        """From a ``RangingConfig`` (``cfg.ranging``); ``mixture_file`` is loaded unless ``mixture`` is given, and the
+        ``ranging`` table of ``correction_file``."""
+        correction = (read_correction(cfg.correction_file, "ranging", key="ranging.correction_file")
+                      if cfg.correction_file else None)
         if mixture is None and cfg.mixture_file and cfg.error in ("mixture", "seed"):
             try:
                 mixture = Mixture.load(cfg.mixture_file)
@@ -149,7 +170,7 @@ class RangingModel:
                 raise MixtureError(f"ranging.mixture_file = {cfg.mixture_file!r}: {exc}") from None
         return cls(error=cfg.error, max_range=cfg.max_range, sigma=cfg.sigma, mixture=mixture,
                    seed_variance_factor=cfg.seed_variance_factor, beacons=cfg.beacons, table_tol=table_tol,
-                   **{k: getattr(cfg, k) for k in RADIO_KEYS})
+                   correction=correction, **{k: getattr(cfg, k) for k in RADIO_KEYS})
 
     def _params(self) -> RangingParams:
         """The kernels' record (layout in :class:`RangingParams`); unused parts are 1-element placeholders."""
@@ -167,8 +188,13 @@ class RangingModel:
             arrays = tuple(np.zeros(1) for _ in range(7))
         # read-only arrays throughout, so every mode has the same numba type (one compilation)
         comp = np.stack([np.asarray(a, dtype=np.float64) for a in arrays], axis=1)  # (K, 7), columns COMP_*
+        if self.correction is None:
+            correction, median = NO_TABLE, np.zeros(2)
+        else:
+            correction, median = self.correction.packed(), error_medians(self, MEDIAN_NODES)
+        radio = RadioParams(**self._radio_fields(self.radio))
         return _readonly_params(RangingParams(np.int64(self.mode), float(self.max_range), float(self.sigma),
-                                              float(inv_h), prob, alias, comp, *radio_params(self.radio)))
+                                              float(inv_h), prob, alias, comp, *radio, correction, median))
 
     def sample(self, x, seed: int = 0, env: int = 0, step: int = 0, copter: int = 0) -> np.ndarray:
         """Readings, m, for true distances ``x`` m (any shape; element j of the flattened array uses reading
@@ -201,7 +227,30 @@ def _ro(a, dtype) -> np.ndarray:
 def _readonly_params(p: RangingParams) -> RangingParams:
     """``p`` with its arrays read-only (the one numba type of :class:`RangingParams`)."""
     return p._replace(prob=_ro(p.prob, np.float64), alias=_ro(p.alias, np.int32), comp=_ro(p.comp, np.float64),
-                      node_delay=_ro(p.node_delay, np.float64), antenna=_ro(p.antenna, np.float64))
+                      node_delay=_ro(p.node_delay, np.float64), antenna=_ro(p.antenna, np.float64),
+                      correction=_ro(p.correction, np.float64), median=_ro(p.median, np.float64))
+
+
+#: nodes of the error model's median reading over [0, max_range] (``RangingParams.median``)
+MEDIAN_NODES = 1025
+
+
+def error_medians(model: "RangingModel", R: int) -> np.ndarray:
+    """The median reading m of the error model of ``model`` (clipped at 0, as a reading) at the true distances
+    x_k = k·max_range/(R − 1), k = 0 … R − 1: (R,). ``mixture``: the conditional mixture's CDF solved by bisection
+    (to 1e-9 m); ``seed``: the mean of its normal reading; ``gaussian``, ``none``: x."""
+    x = np.linspace(0.0, model.max_range, R)
+    if model.error == "seed":
+        return np.maximum(model.mixture.seed_mean_std(x, model.seed_variance_factor)[0], 0.0)
+    if model.error != "mixture":
+        return x
+    mu, sd = model.mixture.component_conditionals(x)
+    lo, hi = (mu - 10.0 * sd).min(axis=-1), (mu + 10.0 * sd).max(axis=-1)
+    while np.max(hi - lo) > 1e-9:
+        mid = 0.5 * (lo + hi)
+        below = model.mixture.conditional_cdf(mid, x) < 0.5
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return np.maximum(0.5 * (lo + hi), 0.0)
 
 
 @functools.lru_cache(maxsize=16)

@@ -38,8 +38,8 @@ import numpy as np
 from numba import njit, prange
 
 from ..kernels.cellgrid import build_env, grid_layout, query_env
-from ..kernels.rng import STREAM_RANGING, counter_key, normal, uniform
-from .ranging_radio import RadioParams, los_clearance, radio_dropped, radio_shift, tag_distance
+from ..kernels.rng import STREAM_CORRECTION_RANGING, STREAM_RANGING, counter_key, normal, uniform
+from .ranging_radio import RadioParams, corrected_reading, los_clearance, radio_dropped, radio_shift, tag_distance
 
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
@@ -73,7 +73,11 @@ class RangingParams(NamedTuple):
     C-contiguous, so every mode has the same numba type (one compilation).
 
     Then the fields of :class:`~finkensim.sensors.ranging_radio.RadioParams`, the radio effects (antenna offsets,
-    delays, scale, bias, NLOS, tail, dropout; ``radio_on`` = 0 leaves every reading as without them).
+    delays, scale, bias, NLOS, tail, dropout; ``radio_on`` = 0 leaves every reading as without them), and the
+    learned correction (``ranging.correction_file``; :func:`~finkensim.sensors.ranging_radio.corrected_reading`, which
+    runs on the radio path: ``radio_on`` is 1 with a correction): ``correction`` the packed table (G + 1, Q + 1)
+    (:meth:`~finkensim.sensors.correction_table.CorrectionTable.packed`; (0, 0) = none) and ``median`` (R,) m the
+    error model's median reading at true distances k·max_range/(R − 1) (a placeholder without a correction).
 
     Loops unpack the record once (``mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]``) and call
     :func:`reading_rule`: numba does not always elide the reference counting of arrays handed to an inlined
@@ -106,9 +110,12 @@ class RangingParams(NamedTuple):
     tail_mean: float
     dropout_a: float
     dropout_b: float
+    correction: np.ndarray
+    median: np.ndarray
 
 
-assert RangingParams._fields[7:] == RadioParams._fields  # the radio effects' fields, in the same order
+# the radio effects' fields, in the same order, then the learned correction's
+assert RangingParams._fields[7:-2] == RadioParams._fields
 
 
 def row_key(seed, env, step, copter) -> np.uint64:
@@ -204,12 +211,16 @@ def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
 def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
     """:func:`ranging_env` with the radio effects of ``ranging`` (:mod:`finkensim.sensors.ranging_radio`): the
     tag-to-tag distance decides the range and feeds the error model, whose draw :func:`radio_shift` turns into
-    the reading; a lost reading (dropout) is NaN. Every pair is visited (no cell grid)."""
+    the reading; a lost reading (dropout) is NaN. Every pair is visited (no cell grid). With a learned correction
+    (``ranging.correction``) a reading that is not lost is :func:`corrected_reading` instead (uniform j of the key
+    ``counter_key(seed, env, step, i, STREAM_CORRECTION_RANGING)``)."""
     n = pos_b.shape[0]
     m = beacons.shape[0]
     mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
+    corrected = ranging.correction.shape[0] > 0
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
+        ckey = counter_key(seed, env, step, i, STREAM_CORRECTION_RANGING) if corrected else key
         xi = pos_b[i, 0]
         yi = pos_b[i, 1]
         for j in range(n + m):
@@ -235,9 +246,12 @@ def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
             elif radio_dropped(x, key, j, ranging):
                 out[i, j] = np.nan
             else:
-                y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
                 clear = los_clearance(pos_b, i, j if j < n else -1, bx, by) if ranging.nlos_on else np.inf
-                out[i, j] = radio_shift(y, i, j, clear, key, j, ranging)
+                if corrected:
+                    out[i, j] = corrected_reading(x, i, j, clear, ckey, j, ranging)
+                else:
+                    y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
+                    out[i, j] = radio_shift(y, i, j, clear, key, j, ranging)
 
 
 @njit(cache=True, inline="always")

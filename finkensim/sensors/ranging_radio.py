@@ -17,6 +17,14 @@ and b (copters 0…N−1, then fixed beacons), is built here in this order:
 4. **Dropout** (``ranging.dropout_a``, ``dropout_b`` 1/m): the reading is lost (NaN) with probability
    sigmoid(a + b·x) (:func:`dropout_probability`; a = −inf: never).
 
+**The learned correction** (``ranging.correction_file``, :mod:`finkensim.sensors.correction_table`) replaces steps 2
+and 3's random parts: :func:`corrected_reading` reads ``max(0, ref + Q_g(u))``, ref = ``max(0, line(m(x)))`` the
+model's median reading (m(x) the error model's median at true distance x, :func:`error_median`; line the
+deterministic part of step 3: scale, bias, delays, NLOS near a third copter; the tail is part of what the table
+replaces), Q_g the residual's quantile function in the bin g of ref and u uniform ``j`` of the measuring copter's
+key on ``STREAM_CORRECTION_RANGING``. Steps 1 and 4 stay. The diagnosis's draws (:func:`radio_batch`) call the same
+function.
+
 :class:`RadioParams` lists these fields; they are the last fields of :class:`~finkensim.sensors.ranging_kernels.RangingParams`;
 ``radio_on`` = 0 (every default) skips all of it, so readings are bit for bit those without the effects.
 
@@ -31,10 +39,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..kernels.rng import STREAM_RANGING, counter_key, uniform
+from ..kernels.rng import STREAM_CORRECTION_RANGING, STREAM_RANGING, counter_key, uniform
+from .correction_table import correction_quantile
 from .tracking import draw_poses
 
-__all__ = ["RADIO_BASE", "RadioParams", "antenna_key", "radio_draws", "dropout_probabilities", "dropout_probability", "neutral_radio", "node_delay", "radio_batch",
+__all__ = ["RADIO_BASE", "RadioParams", "antenna_key", "corrected_reading", "error_median", "radio_line", "radio_draws", "dropout_probabilities", "dropout_probability", "neutral_radio", "node_delay", "radio_batch",
            "radio_dropped", "radio_shift", "tag_distance", "tag_distance_draws", "tag_position", "los_clearance"]
 
 #: first uniform index of the radio effects in a row (error models use indices < 4·(columns) or (columns)·K)
@@ -143,14 +152,45 @@ def los_clearance(pos, a, b, bx, by):
 
 
 @njit(cache=True, inline="always")
-def radio_shift(y, a, b, clear, key, j, ranging):
-    """The reading m of nodes a, b after the radio effects, from the error model's draw y m (≥ 0): scale, bias,
-    both node delays, NLOS near a third copter at clearance ``clear`` m, the exponential tail (uniforms of column j
-    of row ``key``); clipped at 0."""
+def radio_line(y, a, b, clear, ranging):
+    """The deterministic radio effects on the error model's draw y m of nodes a, b, m (not clipped): scale, bias,
+    both node delays, NLOS near a third copter at clearance ``clear`` m."""
     v = ranging.scale * y + ranging.bias + node_delay(ranging, a) + node_delay(ranging, b)
     if ranging.nlos_on:
         w = clear / ranging.nlos_width
         v += ranging.nlos_bias * np.exp(-(w * w))
+    return v
+
+
+@njit(cache=True, inline="always")
+def error_median(ranging, x):
+    """The error model's median reading m at true distance x in [0, max_range] m: linear between the nodes of
+    ``ranging.median`` (R,), spaced max_range/(R − 1) from 0."""
+    last = ranging.median.shape[0] - 1
+    t = x / ranging.max_range * last
+    k = min(int(t), last - 1)
+    w = t - k
+    return ranging.median[k] + w * (ranging.median[k + 1] - ranging.median[k])
+
+
+@njit(cache=True, inline="always")
+def corrected_reading(x, a, b, clear, ckey, j, ranging):
+    """The reading m of nodes a, b at true distance x ≤ max_range m with the learned correction: ``max(0, ref +
+    Q_g(u))``, ref = max(0, :func:`radio_line` of :func:`error_median`) the model's median reading, Q_g the
+    correction's quantile function in ref's bin (:func:`~finkensim.sensors.correction_table.correction_quantile`)
+    and u uniform j of ``ckey`` (the ``STREAM_CORRECTION_RANGING`` key)."""
+    ref = radio_line(error_median(ranging, x), a, b, clear, ranging)
+    ref = ref if ref > 0.0 else 0.0
+    v = ref + correction_quantile(ranging.correction, ref, uniform(ckey, j))
+    return v if v > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def radio_shift(y, a, b, clear, key, j, ranging):
+    """The reading m of nodes a, b after the radio effects, from the error model's draw y m (≥ 0): scale, bias,
+    both node delays, NLOS near a third copter at clearance ``clear`` m (:func:`radio_line`), the exponential
+    tail (uniforms of column j of row ``key``); clipped at 0."""
+    v = radio_line(y, a, b, clear, ranging)
     if ranging.tail_on:
         if uniform(key, RADIO_BASE + 4 * j) < ranging.tail_probability:
             v -= ranging.tail_mean * np.log(uniform(key, RADIO_BASE + 4 * j + 1))
@@ -183,15 +223,19 @@ def radio_dropped(x, key, j, ranging):
 
 
 @njit(cache=True, parallel=True)
-def radio_batch(y0, x, a, b, clear, key, max_range, ranging, out):
+def radio_batch(y0, x, a, b, clear, key, ckey, max_range, ranging, out):
     """The diagnosis's draws with the radio effects: out (n, M) m from the error model's draws y0 (n, M) m of true
     (tag) distances x (n, M) m between nodes a (n,) and b (n,) int64, line-of-sight clearances clear (n,) m. Draw
-    (i, m) uses column i·M + m of the row ``key``; x > max_range reads max_range (no effect)."""
+    (i, m) uses column i·M + m of the row ``key`` (with a learned correction: :func:`corrected_reading`, uniform
+    i·M + m of ``ckey``, and y0 is not read); x > max_range reads max_range (no effect)."""
     n, M = y0.shape
+    corrected = ranging.correction.shape[0] > 0
     for i in prange(n):
         for m in range(M):
             if x[i, m] > max_range:
                 out[i, m] = max_range
+            elif corrected:
+                out[i, m] = corrected_reading(x[i, m], a[i], b[i], clear[i], ckey, i * M + m, ranging)
             else:
                 out[i, m] = radio_shift(y0[i, m], a[i], b[i], clear[i], key, i * M + m, ranging)
 
@@ -199,12 +243,14 @@ def radio_batch(y0, x, a, b, clear, key, max_range, ranging, out):
 def radio_draws(y0, x, a, b, clear, seed, p) -> np.ndarray:
     """:func:`radio_batch` of the diagnosis's draws y0 (n, M) m of true distances x (n, M) m between nodes a, b (n,)
     at clearances clear (n,) m, keyed by the run ``seed`` (row key of copter 0 at env 0, step 0), with the
-    :class:`~finkensim.sensors.ranging_kernels.RangingParams` p → (n, M) m."""
+    :class:`~finkensim.sensors.ranging_kernels.RangingParams` p (its learned correction keyed on
+    ``STREAM_CORRECTION_RANGING`` likewise) → (n, M) m."""
     out = np.empty(np.shape(y0))
-    key = np.uint64(counter_key(np.int64(seed), np.int64(0), np.int64(0), np.int64(0), np.int64(STREAM_RANGING)))
+    key, ckey = (np.uint64(counter_key(np.int64(seed), np.int64(0), np.int64(0), np.int64(0), np.int64(stream)))
+                 for stream in (STREAM_RANGING, STREAM_CORRECTION_RANGING))
     radio_batch(np.ascontiguousarray(y0, dtype=np.float64), np.ascontiguousarray(x, dtype=np.float64),
                 np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64),
-                np.ascontiguousarray(clear, dtype=np.float64), key, float(p.max_range), p, out)
+                np.ascontiguousarray(clear, dtype=np.float64), key, ckey, float(p.max_range), p, out)
     return out
 
 

@@ -65,3 +65,26 @@ def imu_trajectory_ref(acc_world, yaw, yaw_rate, bias0, acc_density, acc_walk_de
 def turn_on_ref(N, seed, env_ids, step, acc_spread, gyro_spread):
     z = _cell_normals(seed, env_ids, step, N, 9)[..., 6:9]
     return z * np.array([acc_spread, acc_spread, gyro_spread])
+
+
+def corrected_imu_ref(acc_world, yaw, yaw_rate, tables, window, dt, acc_bias, gyro_bias, seed, env, step):
+    """Reference of ``imu_correction.corrected_imu`` for every copter of one environment: (acc_body (N, 2), gyro
+    (N,)). ``tables``: the three :class:`~finkensim.sensors.correction_table.CorrectionTable` (dv_x, dv_y, dyaw),
+    ``window`` s; the block's uniforms 0, 1, 2 of the cell (seed, env, step // h, copter, STREAM_CORRECTION_IMU)."""
+    from finkensim.kernels.rng import STREAM_CORRECTION_IMU, counter_key, uniform
+
+    h = max(1, int(round(window / dt)))
+    N = len(yaw)
+    acc, gyro = np.empty((N, 2)), np.empty(N)
+    for n in range(N):
+        key = np.uint64(counter_key(*map(np.int64, (seed, env, step // h, n, STREAM_CORRECTION_IMU))))
+        c, s = np.cos(yaw[n]), np.sin(yaw[n])
+        median = [acc_world[n, 0] + c * acc_bias[0] - s * acc_bias[1], acc_world[n, 1] + s * acc_bias[0] + c * acc_bias[1],
+                  yaw_rate[n] + gyro_bias]
+        v = []
+        for ch, (t, m) in enumerate(zip(tables, median)):
+            g = int(np.clip(np.searchsorted(t.edges, m * window, side="right") - 1, 0, t.quantiles.shape[0] - 1))
+            v.append(m + float(np.interp(uniform(key, ch), t.levels, t.quantiles[g])) / window)
+        acc[n] = c * v[0] + s * v[1], -s * v[0] + c * v[1]
+        gyro[n] = v[2]
+    return acc, gyro

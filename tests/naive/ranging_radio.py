@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from finkensim.kernels.rng import uniform
+from finkensim.kernels.rng import STREAM_CORRECTION_RANGING, counter_key, uniform
 from finkensim.sensors.ranging_kernels import row_key
 from finkensim.sensors.ranging_radio import RADIO_BASE
 from tests.naive.ranging import naive_reading, naive_row_numbers
@@ -86,8 +86,27 @@ def naive_radio_readings(positions, yaw, beacons, seed, env_ids, step, model):
                 elif uniform(key, RADIO_BASE + 4 * j + 2) < naive_dropout_probability(x, radio["dropout_a"],
                                                                                        radio["dropout_b"]):
                     out[e, i, j] = np.nan
+                elif model.correction is not None:  # the learned correction replaces the error model's draw
+                    clear = naive_clearance(positions[e], i, j if j < n else -1, end)
+                    ckey = np.uint64(counter_key(*map(np.int64, (seed, env_ids[e], step, i, STREAM_CORRECTION_RANGING))))
+                    out[e, i, j] = naive_corrected(x, i, j, clear, ckey, j, model)
                 else:
                     y = naive_reading(x, j, model, u, z)
                     clear = naive_clearance(positions[e], i, j if j < n else -1, end)
                     out[e, i, j] = naive_shift(y, i, j, clear, key, j, radio)
     return out
+
+
+def naive_corrected(x, a, b, clear, ckey, j, model):
+    """Reference of ``ranging_radio.corrected_reading``: the model's median reading (the error model's median on the
+    grid ``model.params.median``, linear, then the deterministic radio effects, clipped at 0) plus the correction's
+    quantile (``np.interp`` of its levels in ref's bin) at uniform j of ``ckey``, clipped at 0."""
+    radio, t = model.radio, model.correction
+    grid = np.linspace(0.0, model.max_range, model.params.median.size)
+    m = float(np.interp(x, grid, model.params.median))
+    ref = radio["scale"] * m + radio["bias"] + naive_delay(radio, a) + naive_delay(radio, b)
+    if radio["nlos_bias"] != 0.0:
+        ref += radio["nlos_bias"] * math.exp(-(clear / radio["nlos_width"]) ** 2)
+    ref = max(ref, 0.0)
+    g = int(np.clip(np.searchsorted(t.edges, ref, side="right") - 1, 0, t.quantiles.shape[0] - 1))
+    return max(ref + float(np.interp(uniform(ckey, j), t.levels, t.quantiles[g])), 0.0)

@@ -20,6 +20,7 @@ from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RAN
 from . import replay as rp
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
 from ...sensors.sonar_hold import held_steps
+from ...sensors.imu_correction import corrected_window_draws
 from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
@@ -476,6 +477,10 @@ class ImuTable(Table):
         # walk of std walk·sqrt(t) integrated over the window
         sd = np.sqrt(density ** 2 * self.noise_s[rows] + (walk * ws) ** 2 * self.seconds[rows])
         out = np.empty_like(ideal)
+        if p.imu.correction.shape[0] > 0:  # the learned correction the simulator flies (imu.correction_file)
+            corrected_window_draws(np.ascontiguousarray(ideal), np.ascontiguousarray(bias), ch, self.flight[rows],
+                                   self.time[rows], self.copter[rows] * 4 + ch, seed, p.imu.correction, out)
+            return out, period
         gaussian_draws(np.ascontiguousarray(ideal), self.flight[rows], self.time[rows], self.copter[rows] * 4 + ch,
                        seed, np.ascontiguousarray(sd), np.ascontiguousarray(bias), out)
         return out, period

@@ -22,7 +22,11 @@ from ...config import Config
 from ..attribute import effects as fx
 
 __all__ = ["CalibratedEffect", "calibration", "calibrated_config", "calibrated_toml", "calibration_samples",
-           "correction_tables", "write_calibrated", "SAMPLES_FILE"]
+           "correction_files", "correction_tables", "write_calibrated", "SAMPLES_FILE", "CORRECTION_KEYS"]
+
+#: sensor of a learned correction → the config key through which the simulator flies its table
+CORRECTION_KEYS = {"ultrasonic": "sonar.correction_file", "ranging": "ranging.correction_file",
+                   "imu": "imu.correction_file"}
 
 
 @dataclass(frozen=True)
@@ -48,6 +52,22 @@ def _diagnosed_config(report) -> Config:
     return cfg
 
 
+def correction_files(cfg: Config) -> dict:
+    """The learned-correction files ``cfg`` flies: config key (of :data:`CORRECTION_KEYS`) → path, the set ones only."""
+    out = {}
+    for key in CORRECTION_KEYS.values():
+        section, name = key.split(".")
+        path = getattr(getattr(cfg, section), name)
+        if path:
+            out[key] = path
+    return out
+
+
+def _flown_tables(report) -> list:
+    """The sensors of the report's learned correction that the simulator flies (keys of :data:`CORRECTION_KEYS`)."""
+    return [s for s in correction_tables(report) if s in CORRECTION_KEYS]
+
+
 def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, list[CalibratedEffect]]:
     cfg = _diagnosed_config(report)
     alone = {e["name"]: e.get("shrink_heldout", float("nan")) for e in report.effects}
@@ -63,7 +83,7 @@ def _walk(report, correction_file: str | Path | None = None) -> tuple[Config, li
         cfg = cfg.replace(updates)
         steps.append(CalibratedEffect(name, dict(params), dict(updates), True, alone.get(name, float("nan")), iv))
     if correction_file is not None:
-        cfg = cfg.replace({"sonar.correction_file": str(correction_file)})
+        cfg = cfg.replace({CORRECTION_KEYS[s]: str(correction_file) for s in _flown_tables(report)})
     return cfg, steps
 
 
@@ -81,8 +101,9 @@ def calibration(report) -> list[CalibratedEffect]:
 
 
 def calibrated_config(report, correction_file: str | Path | None = None) -> Config:
-    """The diagnosed config with every selected, flyable effect at its fitted parameters (and
-    ``sonar.correction_file`` set to ``correction_file`` when given: :func:`write_calibrated` writes it)."""
+    """The diagnosed config with every selected, flyable effect at its fitted parameters (and, when
+    ``correction_file`` is given, the ``correction_file`` key of each sensor with a learned correction set to it:
+    :func:`write_calibrated` writes it)."""
     return _walk(report, correction_file)[0]
 
 
@@ -138,7 +159,8 @@ SAMPLES_FORMAT = "finkensim-calibration-samples"
 
 def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
     """The calibrated config as TOML text: every key of every section, the keys an effect set commented
-    (``correction_file``: the learned correction's table file, referenced as ``sonar.correction_file``)."""
+    (``correction_file``: the learned correction's table file, referenced by the ``correction_file`` key of each
+    sensor it corrects, :data:`CORRECTION_KEYS`)."""
     import tomlkit
 
     cfg, steps = _walk(report, correction_file)
@@ -161,9 +183,10 @@ def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
         doc.add(tomlkit.comment(f"parameter intervals: block bootstrap of the training readings; {SAMPLES_FILE} "
                                 "beside this file holds draws for finkensim sweep's calibration = \"sample\""))
     tables = correction_tables(report)
-    for sensor in sorted(set(tables) - {"ultrasonic"}):
+    for sensor in sorted(set(tables) - set(CORRECTION_KEYS)):
         doc.add(tomlkit.comment(f"NOT FLOWN: the learned correction of {sensor} (the simulator applies the "
-                                "ultrasonic table only)"))
+                                f"tables of {', '.join(CORRECTION_KEYS)} only)"))
+    corrected = {CORRECTION_KEYS[s]: s for s in _flown_tables(report)} if correction_file is not None else {}
     set_by = {key: s for s in steps for key in s.updates}
     data = cfg.to_dict()
     doc.add("profile", data.pop("profile"))
@@ -176,24 +199,24 @@ def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
                 alone = f"; alone it removes {100 * s.shrink_heldout:.0f} % of the held-out gap" \
                     if s.shrink_heldout == s.shrink_heldout else ""
                 item.comment(f"set by {s.name} ({_fmt_params(s.params)}){alone}{_fmt_intervals(s.intervals)}")
-            elif f"{section}.{key}" == "sonar.correction_file" and correction_file is not None:
-                item.comment("the learned correction (residual quantiles on a grid of the model median) "
-                             "of the unexplained gap")
+            elif f"{section}.{key}" in corrected:
+                item.comment(f"the learned correction of {corrected[f'{section}.{key}']} (residual quantiles on a "
+                             "grid of the model median) of the unexplained gap")
             table.add(key, item)
         doc.add(section, table)
     return tomlkit.dumps(doc)
 
 
 def write_calibrated(report, path: str | Path) -> Path:
-    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path. With a learned correction of the
-    sonars, its table goes beside it as ``correction.json`` (:mod:`finkensim.sensors.correction_table`),
-    referenced from the config by its absolute path."""
+    """Write :func:`calibrated_toml` to ``path`` atomically; returns the path. With a learned correction of a sensor
+    the simulator flies (:data:`CORRECTION_KEYS`), its tables go beside it as ``correction.json``
+    (:mod:`finkensim.sensors.correction_table`), referenced from the config by its absolute path."""
     from ...sensors.correction_table import write_correction
 
     path = Path(path)
     tables = correction_tables(report)
     corr = None
-    if "ultrasonic" in tables:
+    if _flown_tables(report):
         corr = write_correction(path.with_name("correction.json"), tables,
                                 {"flights": report.flights, "method": report.details.correction.method}).resolve()
     samples = calibration_samples(report)

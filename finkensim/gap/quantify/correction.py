@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...sensors.correction_table import CorrectionTable
+from ...sensors.correction_table import ChannelTables, CorrectionTable
+from ...sensors.imu_correction import IMU_CHANNELS, IMU_UNITS
 from ..model.scoring import brier, ensemble_terms
 
-__all__ = ["Correction", "fit_correction", "residual_table", "QUANTILES"]
+__all__ = ["Correction", "fit_correction", "residual_table", "channel_tables", "QUANTILES"]
 
 QUANTILES = 19  # quantile levels of the correction's predictive distribution
 MAX_TRAIN_ROWS = 20000
@@ -38,7 +39,8 @@ class Correction:
     (n,) held-out normalised score and the correction's own expected score; rows_gap: their difference, the
     calibration gap; partial_dependence: sensor →
     {feature: (grid (G,), median residual (G,) m)}; tables: sensor → the residual's quantiles on a grid of the model
-    median (:func:`residual_table`), the form the simulator flies (:mod:`finkensim.sensors.correction_table`)."""
+    median (:func:`residual_table`; the IMU: one per channel, :func:`channel_tables`), the form the simulator flies
+    (:mod:`finkensim.sensors.correction_table`)."""
 
     sensor: str
     sensors: list
@@ -62,10 +64,10 @@ TABLE_BINS = 12
 TABLE_MIN_ROWS = 200
 
 
-def residual_table(median: np.ndarray, residual: np.ndarray, levels: np.ndarray) -> CorrectionTable:
+def residual_table(median: np.ndarray, residual: np.ndarray, levels: np.ndarray, unit: str = "m") -> CorrectionTable:
     """The correction as a table the simulator applies: the empirical quantiles at ``levels`` (Q,) of the training
-    residuals (n,) m in bins of the model median (n,) m (equal-count bins, at most :data:`TABLE_BINS`, each with at
-    least ``TABLE_MIN_ROWS`` readings; the outer edges widened by 1 mm)."""
+    residuals (n,) in bins of the model median (n,), both in ``unit`` (equal-count bins, at most :data:`TABLE_BINS`,
+    each with at least ``TABLE_MIN_ROWS`` readings; the outer edges widened by 1e-3 ``unit``)."""
     G = max(1, min(TABLE_BINS, median.size // TABLE_MIN_ROWS))
     edges = np.unique(np.quantile(median, np.linspace(0.0, 1.0, G + 1)))
     if edges.size < 2:
@@ -75,7 +77,25 @@ def residual_table(median: np.ndarray, residual: np.ndarray, levels: np.ndarray)
     g = np.clip(np.searchsorted(edges, median, side="right") - 1, 0, edges.size - 2)
     q = np.array([np.quantile(residual[g == k], levels) if (g == k).any() else np.quantile(residual, levels)
                   for k in range(edges.size - 1)])
-    return CorrectionTable(edges, np.asarray(levels, dtype=float), np.maximum.accumulate(q, axis=1))
+    return CorrectionTable(edges, np.asarray(levels, dtype=float), np.maximum.accumulate(q, axis=1), unit)
+
+
+def channel_tables(median: np.ndarray, residual: np.ndarray, channel: np.ndarray, window: float,
+                   levels: np.ndarray) -> ChannelTables | None:
+    """The IMU's correction as a table per channel (:data:`~finkensim.sensors.imu_correction.IMU_CHANNELS`, the
+    rows' ``channel`` (n,) 0, 1, 2) of its window integrals over ``window`` s (:func:`residual_table` of each
+    channel's rows); None when a channel has no training reading."""
+    if any(not (channel == c).any() for c in range(len(IMU_CHANNELS))):
+        return None
+    return ChannelTables({name: residual_table(median[channel == c], residual[channel == c], levels, unit)
+                          for c, (name, unit) in enumerate(zip(IMU_CHANNELS, IMU_UNITS))}, float(window))
+
+
+def _export(tab, sensor, rows, median, residual, levels):
+    """The table the simulator flies of ``sensor``'s training ``rows`` (model medians, residuals), or None."""
+    if sensor == "imu":
+        return channel_tables(median, residual, tab.channel[rows], float(np.median(tab.window_s[rows])), levels)
+    return residual_table(median, residual, levels)
 
 
 def _fit_sensor(diag, sensor, p, located):
@@ -125,7 +145,7 @@ def _fit_sensor(diag, sensor, p, located):
             continue
         res = partial_dependence(mid, sample, [j], grid_resolution=20, kind="average")
         pd[feat] = (np.asarray(res["grid_values"][0], float), np.asarray(res["average"][0], float))
-    return names, score, expected, pd, residual_table(med[ok], r, levels)
+    return names, score, expected, pd, _export(tab, sensor, rows_fit[ok], med[ok], r, levels)
 
 
 def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | None = None) -> Correction | None:
@@ -157,5 +177,6 @@ def fit_correction(diag, p, sensors, located: dict | None = None, why: dict | No
         out.rows_expected[s] = expected
         out.rows_gap[s] = score - expected
         out.partial_dependence[s] = pd
-        out.tables[s] = table
+        if table is not None:
+            out.tables[s] = table
     return out

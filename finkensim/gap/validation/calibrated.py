@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ...config import load_config
-from ..quantify.calibrate import write_calibrated
+from ..quantify.calibrate import correction_files, write_calibrated
 from ..diagnosis import Diagnosis
 from ..pipeline import run_diagnosis
 from .cases import generate, get_case, run_case
@@ -46,7 +46,7 @@ def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: floa
     row.update(calibrated_significant=bool(again.verdict["significant_gap"]), calibrated_gap=again.gap_before,
                calibrated_gap_ratio=again.gap_before / gap0 if gap0 and math.isfinite(gap0) else math.nan,
                calibrated_effects=list(again.verdict["effects"]),
-               calibrated_correction="sonar.correction_file" if cal.sonar.correction_file else "")
+               calibrated_correction=", ".join(correction_files(cal)))
     return row
 
 
