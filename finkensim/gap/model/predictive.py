@@ -23,6 +23,7 @@ from ...sensors.sonar_hold import held_steps
 from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
+from .wallreplay import sonar_draws_split
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -133,6 +134,8 @@ class Table:
     gathered: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # per-row ideal draws
     normals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # pose draws' normals per flight
     errors: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
+    copters: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar: copters' part of a replay
+    seen: LRU = field(default_factory=lambda: LRU(64), repr=False)  # sonar: the copters' keys replayed once
 
     @property
     def n(self) -> int:
@@ -221,10 +224,23 @@ class SonarTable(Table):
         if z is None:  # σ-free, so shared by every evaluation on these samples (σ, walls, beam, sonar model)
             z = self.normals.put(zkey, np.empty((K, G, N, 3)))
             rp.pose_normal_table(times, N, G, seed, fl.index, z)
-        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape,
-                                           p.bulge_hinge, times=times),
-                       fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt,
-                       z=z)
+        poses = fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape, p.bulge_hinge,
+                                    times=times)
+        args = (poses, fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed))
+        # the same key without the walls' parameters: a second replay of it (a fit of the walls) keeps the copters'
+        # part and the cross-talk paths and casts only the walls again (wallreplay; the same numbers)
+        ckey = ("copters", split.key, sx, sy) + key[10:]  # σ exact: the kept part is of these very poses
+        kept = self.copters.get(ckey)
+        if kept is not None:
+            sonar_draws_split(*args, z, need, dist, kind, kept[1], kept[0], record=False)
+            return self.cache.put(key, (dist, kind, kept[1]))
+        if self.seen.get(ckey) is None:  # the first replay of these copters: nothing recorded
+            self.seen.put(ckey, True)
+            rp.sonar_draws(*args, G, need, dist, kind, xt, z=z)
+        else:
+            copters = np.empty((K, N, S, G, sp.ray_angles.shape[0]))
+            sonar_draws_split(*args, z, need, dist, kind, xt, copters, record=True)
+            self.copters.put(ckey, (copters, xt))
         return self.cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
