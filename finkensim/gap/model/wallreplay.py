@@ -22,10 +22,12 @@ from ...sensors.tracking import draw_poses_from
 
 
 @njit(cache=True, inline="always")
-def _split_hit(n, pose, psi, pos_m, walls, scalars, rays, bands, none, all_, copters, record):
+def _split_hit(n, pose, psi, pos_m, walls, scalars, rays, bands, cands, kept):
     """:func:`~finkensim.sensors.sonar_kernels.sonar_hit` of sonar (n, ·) over all copters, its copters' part taken
-    from ``copters`` (R,) m (the nearest copter of each ray: written when ``record``, else read). Returns (t m, kind,
-    hx m, hy m) as sonar_hit does. ``none``: an empty candidate list (the walls alone); ``all_``: "every copter"."""
+    from kept = (copters (R,) m, record): the nearest copter of each ray, written when ``record``, else read. Returns
+    (t m, kind, hx m, hy m) as sonar_hit does. cands = (an empty candidate list: the walls alone, "every copter")."""
+    none, all_ = cands
+    copters, record = kept
     ox, oy, cx, cy = pose
     R = rays.shape[0]
     best = np.inf
@@ -56,9 +58,12 @@ def _split_hit(n, pose, psi, pos_m, walls, scalars, rays, bands, none, all_, cop
 
 
 @njit(cache=True)
-def _split_draws_at(poses, geometry, sonar, gain, k, noise, z, ti, need, out, copters, record):
-    """:func:`~finkensim.gap.model.replay._sonar_draws_at` with the copters' part and the cross-talk paths written
-    to (``record``) or read from ``copters`` (K, N, S, M, R) and out's cross-talk array."""
+def _split_draws_at(poses, geometry, sonar, gain, at, noise, z, need, out, kept):
+    """:func:`~finkensim.gap.model.replay._sonar_draws_at` at at = (log index k, row ti) with the copters' part and
+    the cross-talk paths written to (``record``) or read from kept = (copters (K, N, S, M, R), record) and out's
+    cross-talk array."""
+    k, ti = at
+    copters, record = kept
     out_dist, out_kind, out_xtalk = out
     M = z.shape[1]
     N = poses.pos.shape[1]
@@ -104,8 +109,8 @@ def _split_draws_at(poses, geometry, sonar, gain, k, noise, z, ti, need, out, co
                         out_xtalk[ti, n, s, m] = np.inf
                     continue
                 pose = sonar_pose(buf, n, s)
-                echo = _split_hit(n, pose, yaw_m[n] + mount_yaw[s], pos_m, walls, scalars, rays, bands, none, all_,
-                                  copters[ti, n, s, m], record)
+                echo = _split_hit(n, pose, yaw_m[n] + mount_yaw[s], pos_m, walls, scalars, rays, bands, (none, all_),
+                                  (copters[ti, n, s, m], record))
                 store_ideal(n, s, echo, scalars.max_range, pose, dist, kind, hit)
                 out_dist[ti, n, s, m] = dist[n, s]
                 out_kind[ti, n, s, m] = kind[n, s]
@@ -115,9 +120,10 @@ def _split_draws_at(poses, geometry, sonar, gain, k, noise, z, ti, need, out, co
 
 
 @njit(cache=True, parallel=True)
-def _split_draws(poses, geometry, sonar, gain, times, noise, z, need, out, copters, record):
+def _split_draws(poses, geometry, sonar, gain, times, noise, z, need, out, kept):
+    """The loop of :func:`sonar_draws_split` over its times (kept = (copters, record))."""
     for ti in prange(times.shape[0]):
-        _split_draws_at(poses, geometry, sonar, gain, times[ti], noise, z, ti, need, out, copters, record)
+        _split_draws_at(poses, geometry, sonar, gain, (times[ti], ti), noise, z, need, out, kept)
 
 
 def sonar_draws_split(poses, geometry, sonar, gain, times, noise, z, need, out_dist, out_kind, out_xtalk, copters,
@@ -135,5 +141,5 @@ def sonar_draws_split(poses, geometry, sonar, gain, times, noise, z, need, out_d
     S, R = sonar.mount_yaw.shape[0], sonar.ray_angles.shape[0]
     if copters.shape != (K, N, S, M, R):
         raise ValueError(f"copters {copters.shape}: expected (K, N, S, M, R) = {(K, N, S, M, R)}")
-    _split_draws(poses, geometry, sonar, gain, times, noise, z, need, (out_dist, out_kind, out_xtalk), copters,
-                 bool(record))
+    _split_draws(poses, geometry, sonar, gain, times, noise, z, need, (out_dist, out_kind, out_xtalk),
+                 (copters, bool(record)))
