@@ -7,8 +7,11 @@ change, one process, one numba thread, and the answers are compared trial by tri
 * ``run --out FILE [--cases …] [--seeds 100 101 …] [--pairs …]``: runs every (case, seed) of the sample and writes
   one JSON line per trial: the verdict (significant gap, effects named, unexplained), right / wrong, the fitted
   values of the effects named, and the trial's CPU seconds (``time.process_time``, after a warm-up trial).
+  Each line also holds ``report_sha256``: a digest of the report's JSON document and of every fitted value and
+  bootstrap interval, bit for bit.
 * ``compare BEFORE AFTER``: per trial, whether the verdict is the same; right → wrong and wrong → right trials
-  named; the largest relative change of a named effect's fitted values; the CPU seconds' medians and sums.
+  named; how many trials' fitted values are exactly equal and whose whole reports are bit-identical (digests); the
+  largest relative change of a named effect's fitted values; the CPU seconds' medians and sums.
 
 Run it with the code to be compared on ``PYTHONPATH`` (e.g. an exported copy of the commit before the change) and
 ``OMP_WAIT_POLICY=passive``; timings follow the machine's load, the answers do not.
@@ -16,6 +19,7 @@ Run it with the code to be compared on ``PYTHONPATH`` (e.g. an exported copy of 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import statistics
@@ -51,11 +55,40 @@ def run_sample(cases, seeds, out_path: str, log=print) -> None:
                     rec = dict(case=case, seed=seed, cpu_s=round(cpu, 3), correct=bool(row["correct"]),
                                significant=bool(row["significant"]), effects=list(row["effects"]),
                                unexplained=bool(row["unexplained"]), ambiguous=list(row["ambiguous"]),
-                               values={k: {n: float(x) for n, x in v.items()} for k, v in added.items()})
+                               values={k: {n: float(x) for n, x in v.items()} for k, v in added.items()},
+                               report_sha256=_report_digest(keep["report"]))
                     fh.write(json.dumps(rec) + "\n")
                     fh.flush()
                     log(f"{case} seed {seed}: {cpu:.1f} s CPU, {'right' if rec['correct'] else 'wrong'}, "
                         f"effects {rec['effects']}{' unexplained' if rec['unexplained'] else ''}")
+
+
+def _feed(h, x) -> None:
+    """Feed ``x`` (dicts, sequences, arrays, numbers, strings) into the hash ``h``, every bit of every number."""
+    import numpy as np
+
+    if isinstance(x, dict):
+        for k in sorted(x, key=repr):
+            h.update(repr(k).encode())
+            _feed(h, x[k])
+    elif isinstance(x, (list, tuple)):
+        h.update(b"[%d" % len(x))
+        for v in x:
+            _feed(h, v)
+    elif isinstance(x, np.ndarray):
+        h.update(repr((x.dtype.str, x.shape)).encode() + np.ascontiguousarray(x).tobytes())
+    elif isinstance(x, (float, np.floating)):
+        h.update(float(x).hex().encode())
+    else:
+        h.update(repr(x).encode())
+
+
+def _report_digest(report) -> str:
+    """SHA-256 of the report's JSON document and of every fitted value and bootstrap interval, bit for bit."""
+    h = hashlib.sha256(report.to_json().encode())
+    _feed(h, report.details.added_params)
+    _feed(h, report.details.param_intervals)
+    return h.hexdigest()
 
 
 def _load(path: str) -> dict:
@@ -90,6 +123,9 @@ def compare(before_path: str, after_path: str) -> str:
     lost = [k for k in keys if before[k]["correct"] and not after[k]["correct"]]
     won = [k for k in keys if after[k]["correct"] and not before[k]["correct"]]
     changes = [c for c in (_value_change(before[k], after[k]) for k in same) if not math.isnan(c)]
+    exact = [k for k in keys if before[k]["values"] == after[k]["values"]]
+    digests = [k for k in keys if "report_sha256" in before[k] and "report_sha256" in after[k]]
+    identical = [k for k in digests if before[k]["report_sha256"] == after[k]["report_sha256"]]
     cb, ca = [before[k]["cpu_s"] for k in keys], [after[k]["cpu_s"] for k in keys]
     L = [f"trials compared: {len(keys)}; same verdict: {len(same)}; right before: "
          f"{sum(before[k]['correct'] for k in keys)}, right after: {sum(after[k]['correct'] for k in keys)}",
@@ -97,6 +133,13 @@ def compare(before_path: str, after_path: str) -> str:
          f"wrong -> right: {[f'{c}:{s}' for c, s in won] or 'none'}",
          "verdict changed: " + (", ".join(f"{c}:{s} {_verdict(before[(c, s)])} -> {_verdict(after[(c, s)])}"
                                           for c, s in keys if (c, s) not in same) or "none")]
+    L.append(f"fitted values of the named effects exactly equal: {len(exact)} of {len(keys)}"
+             + (f"; differ: {', '.join(f'{c}:{s}' for c, s in keys if (c, s) not in exact)}" if len(exact) < len(keys)
+                else ""))
+    if digests:
+        L.append(f"whole report (JSON document, fitted values, intervals) bit-identical: {len(identical)} of "
+                 f"{len(digests)}" + (f"; differ: {', '.join(f'{c}:{s}' for c, s in digests if (c, s) not in identical)}"
+                                      if len(identical) < len(digests) else ""))
     if changes:
         L.append(f"fitted values of the named effects (same verdict): median relative change "
                  f"{statistics.median(changes):.2g}, largest {max(changes):.2g}")

@@ -33,3 +33,36 @@ def test_compare_names_changed_verdicts_and_right_to_wrong(tmp_path):
     assert "sonar_bias:1 (True, ('sonar_bias',), False) -> (True, (), True)" in text
     assert "largest 0.091" in text  # |0.22 − 0.2| / 0.22
     assert "median 4.00 -> 2.00, sum 12.0 -> 6.0" in text
+
+
+def test_compare_counts_exactly_equal_values_and_bit_identical_reports(tmp_path):
+    same = {"latency": {"ultrasonic": 0.2}}
+    before = _write(tmp_path / "b.jsonl", [
+        {**_row("latency", 1, True, ["latency"], 4.0, same), "report_sha256": "aa"},
+        {**_row("latency", 2, True, ["latency"], 4.0, same), "report_sha256": "bb"},
+        _row("null", 1, True, [], 2.0)])
+    after = _write(tmp_path / "a.jsonl", [
+        {**_row("latency", 1, True, ["latency"], 3.0, same), "report_sha256": "aa"},
+        {**_row("latency", 2, True, ["latency"], 3.0, {"latency": {"ultrasonic": 0.2 + 1e-16}}),
+         "report_sha256": "cc"},
+        _row("null", 1, True, [], 1.0)])
+    text = compare(before, after)
+    assert "fitted values of the named effects exactly equal: 2 of 3; differ: latency:2" in text
+    assert "bit-identical: 1 of 2; differ: latency:2" in text
+
+
+def test_report_digest_sees_every_bit_of_a_fitted_value():
+    import numpy as np
+
+    from benchmarks.diagnosis_agreement import _report_digest
+
+    class Report:
+        def __init__(self, x):
+            self.details = type("D", (), {"added_params": {"latency": {"ultrasonic": x}},
+                                          "param_intervals": {"latency": {"draws": np.array([x, 1.0])}}})()
+
+        def to_json(self):
+            return "{}\n"
+
+    assert _report_digest(Report(0.2)) == _report_digest(Report(0.2))
+    assert _report_digest(Report(0.2)) != _report_digest(Report(np.nextafter(0.2, 1.0)))

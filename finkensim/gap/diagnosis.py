@@ -35,6 +35,7 @@ from .detect.limits import range_limits
 from .detect.locations import locate_gap
 from .attribute.fit_result import FitResult
 from .model.params import SENSORS, ModelParams
+from .model.cache import CACHE_BYTES
 from .model.predictive import LRU, ImuTable, RangingTable, SonarTable
 from .model.replay import GapInputError, prepare_flights
 from .model.scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
@@ -97,6 +98,7 @@ class Diagnosis:
         self._choose_rows()
         self._blocks()
         self._score_cache = LRU(64)
+        self._score_cache_eval = LRU(64, CACHE_BYTES)  # held-out and all rows: apart from the fits' training rows
         self._fit_means = {}  # (sensor, predictive key) → mean training score
         self._scales()
 
@@ -193,6 +195,7 @@ class Diagnosis:
                            f"gap.imu_window")
                 raise GapInputError(f"{s}: no readings in the {part} flights{why}")
             self.rows_fit[s] = np.sort(rng.choice(tr_rows, min(cap, tr_rows.size), replace=False))
+            tab.mark_training(self.rows_fit[s])
             self.rows_ho[s] = np.sort(rng.choice(ho_rows, min(4 * cap, ho_rows.size), replace=False))
             allr = np.arange(tab.n)
             self.rows_all[s] = np.sort(rng.choice(allr, min(6 * cap, allr.size), replace=False))
@@ -232,11 +235,12 @@ class Diagnosis:
         repeated evaluations of the same model) cost nothing.
         """
         key = (sensor, id(rows), rows.size, p.sensor_key(sensor))
-        hit = self._score_cache.get(key)
+        cache = self._score_cache if rows is self.rows_fit.get(sensor) else self._score_cache_eval
+        hit = cache.get(key)
         if hit is not None:
             return hit
         out = self._score_rows(sensor, p, rows)
-        self._score_cache.put(key, out)
+        cache.put(key, out)
         return out
 
     def _score_rows(self, sensor, p: ModelParams, rows):

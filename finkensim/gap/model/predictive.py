@@ -24,6 +24,7 @@ from ...sensors.imu_correction import corrected_window_draws
 from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
+from .wallreplay import sonar_draws_split
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -134,6 +135,15 @@ class Table:
     gathered: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # per-row ideal draws
     normals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # pose draws' normals per flight
     errors: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
+    # sonar: copters' part of replays, their keys seen once, ideal arrays of rows not training rows (mark_training)
+    copters: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)
+    seen: LRU = field(default_factory=lambda: LRU(64), repr=False)
+    evals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)
+    training: tuple | None = None
+
+    def mark_training(self, rows: np.ndarray) -> None:
+        """Keep the ideal arrays of rows other than ``rows`` (the training rows) in a cache of their own."""
+        self.training = (_rows_key(rows), rows.size)
 
     @property
     def n(self) -> int:
@@ -206,7 +216,8 @@ class SonarTable(Table):
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9), round(p.bulge_shape, 9),
                round(p.bulge_hinge, 9), sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range, bool(sp.crosstalk & CROSSTALK_GEOMETRIC), sp.update_hz, sp.update_phase)
-        hit = self.cache.get(key)
+        cache = self.evals if self.training not in (None, split.key[1:3]) else self.cache
+        hit = cache.get(key)
         if hit is not None:
             return hit
         u = split.u
@@ -214,19 +225,27 @@ class SonarTable(Table):
         times = np.clip(measured - lag_steps(p.latency_sonar, fl.dt), 0, fl.t.size - 1)
         K, N, S = times.size, fl.n_copters, fl.sonar_yaw.shape[0]
         need = self.needed(split, (K, N, S))
-        dist = np.empty((K, N, S, G))
-        kind = np.empty((K, N, S, G), dtype=np.int8)
-        xt = np.empty((K, N, S, G))
+        dist, kind, xt = np.empty((K, N, S, G)), np.empty((K, N, S, G), dtype=np.int8), np.empty((K, N, S, G))
         zkey = ("pose normals", split.key, times.tobytes(), G, seed)
         z = self.normals.get(zkey)
         if z is None:  # σ-free, so shared by every evaluation on these samples (σ, walls, beam, sonar model)
             z = self.normals.put(zkey, np.empty((K, G, N, 3)))
             rp.pose_normal_table(times, N, G, seed, fl.index, z)
-        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape,
-                                           p.bulge_hinge, times=times),
-                       fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt,
-                       z=z)
-        return self.cache.put(key, (dist, kind, xt))
+        args = (fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape, p.bulge_hinge,
+                                    times=times), fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed))
+        ckey = ("copters", split.key, sx, sy) + key[10:]  # without the walls, σ exact: its replays after the first
+        kept = self.copters.get(ckey)  # keep the copters' part and cross-talk paths and cast the walls (wallreplay)
+        if kept is not None:
+            sonar_draws_split(*args, z, need, dist, kind, kept[1], kept[0], record=False)
+            xt = kept[1]
+        elif self.seen.get(ckey) is None:  # the first replay of these copters: nothing recorded
+            self.seen.put(ckey, True)
+            rp.sonar_draws(*args, G, need, dist, kind, xt, z=z)
+        else:
+            copters = np.empty((K, N, S, G, sp.ray_angles.shape[0]))
+            sonar_draws_split(*args, z, need, dist, kind, xt, copters, record=True)
+            self.copters.put(ckey, (copters, xt))
+        return cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
         """Predictive draws (len(rows), M) of the sonar readings ``rows`` under parameters p."""
