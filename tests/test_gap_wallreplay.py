@@ -11,7 +11,7 @@ from finkensim.config import Config
 from finkensim.gap.model import replay as rp
 from finkensim.gap.model.wallreplay import sonar_draws_split
 from finkensim.sensors.sonar_model import CROSSTALK_OFF, SCHEDULE_RANDOM_OFFSET, wall_geometry
-from finkensim.sensors.ultrasonic import SonarModel
+from finkensim.sensors.sonar import SonarModel
 
 
 def _buffers(K, N, S, G):

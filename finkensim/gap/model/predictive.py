@@ -264,24 +264,6 @@ class SonarTable(Table):
         return out, period
 
 
-def expected_ranging(f) -> np.ndarray:
-    """(T, N, N) bool: where flight f's log expected a ranging reading, so that a NaN there is a dropout and
-    elsewhere "no reading" (``spec/flightlog.md``: NaN = no reading). An imported recording marks it in the extra
-    ``ranging_expected`` (a reading, a value or a lost one, was recorded there); without the extra, every reading
-    and every sample of a pair read synchronously (:func:`~.replay.synchronous_pairs`, e.g. a simulated log), and nothing of a pair read at its
-    own slower rate: a NaN that nobody expected is never a dropout."""
-    e = f.log.extras.get("ranging_expected") if f.log.extras else None
-    shape = f.log.ranging.shape
-    if e is None:
-        r = np.asarray(f.log.ranging)
-        return rp.synchronous_pairs(r)[None] | np.isfinite(r)
-    e = np.asarray(e)
-    if e.shape != shape or e.dtype != np.bool_:
-        raise rp.GapInputError(f"{f.name}: extra array ranging_expected has shape {e.shape} and dtype {e.dtype}; "
-                            f"expected bool of the ranging shape {shape}")
-    return e
-
-
 class RangingTable(Table):
     """Virtual-ranging readings; the dropout channel is scored separately from the values."""
 
@@ -309,7 +291,7 @@ class RangingTable(Table):
             rr = range_rate_at(tr, f)
             nd = nearest_neighbor(P)
             wd = wall_distance(P, f.arena)
-            sel = off & expected_ranging(f)[f.samples]
+            sel = off & rp.expected_ranging(f)[f.samples]
             append_identity(cols, f, y, sel, kk, aa, bb)
             cols["miss"].append(miss[sel])
             cols["clear"].append(clear[sel])

@@ -469,3 +469,21 @@ def imu_window_draws(pos, yaw_unwrapped, t, times, h, b, noise, M, need, out):
             out[ti, n, 0, m] = (x1 - x0) / d1 - (a1 - a0) / d0
             out[ti, n, 1, m] = (y1 - y0) / d1 - (b1 - b0) / d0
             out[ti, n, 2, m] = w1 - w0
+
+
+def expected_ranging(f) -> np.ndarray:
+    """(T, N, N) bool: where flight f's log expected a ranging reading, so that a NaN there is a dropout and
+    elsewhere "no reading" (``spec/flightlog.md``: NaN = no reading). An imported recording marks it in the extra
+    ``ranging_expected`` (a reading, a value or a lost one, was recorded there); without the extra, every reading
+    and every sample of a pair read synchronously (:func:`synchronous_pairs`, e.g. a simulated log), and nothing of a pair read at its
+    own slower rate: a NaN that nobody expected is never a dropout."""
+    e = f.log.extras.get("ranging_expected") if f.log.extras else None
+    shape = f.log.ranging.shape
+    if e is None:
+        r = np.asarray(f.log.ranging)
+        return synchronous_pairs(r)[None] | np.isfinite(r)
+    e = np.asarray(e)
+    if e.shape != shape or e.dtype != np.bool_:
+        raise GapInputError(f"{f.name}: extra array ranging_expected has shape {e.shape} and dtype {e.dtype}; "
+                            f"expected bool of the ranging shape {shape}")
+    return e
