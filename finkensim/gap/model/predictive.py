@@ -24,7 +24,6 @@ from ...sensors.imu_correction import corrected_window_draws
 from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
-from .wallreplay import sonar_draws_split
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -135,9 +134,7 @@ class Table:
     gathered: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # per-row ideal draws
     normals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # pose draws' normals per flight
     errors: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)  # sonar echo errors per rows, model
-    # sonar: copters' part of replays, their keys seen once, ideal arrays of rows not training rows (mark_training)
-    copters: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)
-    seen: LRU = field(default_factory=lambda: LRU(64), repr=False)
+    # sonar: ideal arrays of rows other than the training rows (mark_training)
     evals: LRU = field(default_factory=lambda: LRU(4, CACHE_BYTES), repr=False)
     training: tuple | None = None
 
@@ -231,20 +228,10 @@ class SonarTable(Table):
         if z is None:  # σ-free, so shared by every evaluation on these samples (σ, walls, beam, sonar model)
             z = self.normals.put(zkey, np.empty((K, G, N, 3)))
             rp.pose_normal_table(times, N, G, seed, fl.index, z)
-        args = (fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape, p.bulge_hinge,
-                                    times=times), fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed))
-        ckey = ("copters", split.key, sx, sy) + key[10:]  # without the walls, σ exact: its replays after the first
-        kept = self.copters.get(ckey)  # keep the copters' part and cross-talk paths and cast the walls (wallreplay)
-        if kept is not None:
-            sonar_draws_split(*args, z, need, dist, kind, kept[1], kept[0], record=False)
-            xt = kept[1]
-        elif self.seen.get(ckey) is None:  # the first replay of these copters: nothing recorded
-            self.seen.put(ckey, True)
-            rp.sonar_draws(*args, G, need, dist, kind, xt, z=z)
-        else:
-            copters = np.empty((K, N, S, G, sp.ray_angles.shape[0]))
-            sonar_draws_split(*args, z, need, dist, kind, xt, copters, record=True)
-            self.copters.put(ckey, (copters, xt))
+        rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape,
+                                           p.bulge_hinge, times=times),
+                       fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt,
+                       z=z)
         return cache.put(key, (dist, kind, xt))
 
     def draws(self, flights, p: ModelParams, rows: np.ndarray, seed: int, M: int) -> np.ndarray:
