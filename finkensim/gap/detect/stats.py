@@ -13,8 +13,6 @@ import numpy as np
 
 from ..model.scoring import normal_sf
 
-MIN_BLOCKS = 20
-
 
 def time_blocks(flight_index, time_index, n_time_steps, n_blocks_per_flight=None, block_seconds=None, dt=None):
     """Block id of each reading: flights are cut into contiguous time windows.
