@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from finkensim.arena import Arena
@@ -28,6 +28,7 @@ def rigid(n=1):
 
 @settings(max_examples=60, deadline=None)
 @given(st.floats(0.3, W - 0.3), st.floats(0.3, L - 0.3), st.sampled_from([0.0, math.pi / 2, math.pi, -math.pi / 2]))
+@example(x=0.3125, y=0.9999999999999994, heading=0.0)  # a wall 1e-15 m inside the range limit (CI, 2026-11-28)
 def test_one_copter_axis_aligned_reads_the_wall_distances(x, y, heading):
     """A lone copter facing along an axis: each sonar reads its distance to the wall it faces, minus the sonar
     offset (closed form; front, left, back, right turn with the heading)."""
@@ -41,7 +42,8 @@ def test_one_copter_axis_aligned_reads_the_wall_distances(x, y, heading):
         key = min(walls, key=lambda a: abs(math.remainder(a - direction, 2 * math.pi)))
         want = min(walls[key] - sp.offset, sp.max_range)
         assert dist[0, 0, k] == pytest.approx(want, abs=1e-9)
-        assert kind[0, 0, k] == (1 if walls[key] - sp.offset <= sp.max_range else 0)
+        if abs(walls[key] - sp.offset - sp.max_range) > 1e-9:  # at the range limit itself hit or miss is a rounding tie
+            assert kind[0, 0, k] == (1 if walls[key] - sp.offset <= sp.max_range else 0)
 
 
 @settings(max_examples=40, deadline=None)
