@@ -20,9 +20,8 @@ numba's on-disk cache of compiled kernels, shared by every entry point (:mod:`fi
 """
 from __future__ import annotations
 
-import importlib
-
 from . import numba_cache as _numba_cache
+from .lazy import lazy_exports as _lazy_exports
 
 _numba_cache.configure()  # before any kernel module is imported
 
@@ -49,17 +48,4 @@ _MODULES = ("metrics", "viz", "gap", "sweep", "flightlog", "config", "determinis
 __all__ = ["__version__", *_API, *_MODULES]
 
 
-def __getattr__(name: str):
-    if name in _API:
-        target = _API[name]
-        module, attr = target if isinstance(target, tuple) else (target, name)
-        value = getattr(importlib.import_module(module), attr)
-        globals()[name] = value
-        return value
-    if name in _MODULES:
-        return importlib.import_module(f"finkensim.{name}")
-    raise AttributeError(f"module 'finkensim' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(__all__)
+__getattr__, __dir__ = _lazy_exports(__name__, _API, _MODULES)

@@ -18,20 +18,11 @@ use, so the assertions work without the test extras.
 """
 from __future__ import annotations
 
-import importlib
-
+from ..lazy import lazy_exports
 from ..plugin_checkers import PluginError, check_behaviour, check_effect, check_task
 from .assertions import assert_flightlog_valid, assert_inside_arena, assert_no_overlap, assert_reproducible
 
 __all__ = ["assert_inside_arena", "assert_no_overlap", "assert_reproducible", "assert_flightlog_valid",
            "check_behaviour", "check_effect", "check_task", "PluginError", "strategies", "profiles"]
 
-_LAZY = ("strategies", "profiles")
-
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        module = importlib.import_module(f".{name}", __name__)
-        globals()[name] = module
-        return module
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, {}, ("strategies", "profiles"))
