@@ -38,14 +38,15 @@ demo: $(DEMO_STAMP)
 	$(BIN)/finkensim compile
 	$(BIN)/finkensim run --out out/demo
 
-# The suite runs on TEST_WORKERS processes (pytest-xdist; work stealing evens out the long tests; 0 = one process).
+# The suite runs on TEST_WORKERS processes (pytest-xdist; work stealing evens out the long tests; 0 = one process);
+# it lists its 30 slowest steps, so that a CI log says where the time went.
 # OpenMP threads wait passively: with several processes on the cores, threads that spin between parallel kernels
 # take the cores from the other process (measured on 2 cores: 621 s spinning, 405 s passive, 757 s in one process).
 TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(BIN)/ruff check .
 	OMP_WAIT_POLICY=$${OMP_WAIT_POLICY:-passive} $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal \
-		tests --nbmake notebooks
+		--durations=30 tests --nbmake notebooks
 	$(MAKE) docs
 
 # Line coverage of the engine's kernels as plain Python (NUMBA_DISABLE_JIT=1, as STUMPY measures its own): the tests of
