@@ -37,25 +37,10 @@ from .attribute.fit_result import FitResult
 from .model.params import SENSORS, ModelParams
 from .model.cache import CACHE_BYTES
 from .model.predictive import LRU, ImuTable, RangingTable, SonarTable
-from .model.replay import GapInputError, prepare_flights
+from .model.inputs import GapInputError, check_heldout  # check_heldout: public here too (it moved)
+from .model.replay import prepare_flights
 from .model.scoring import brier, brier_gap, ensemble_terms_grouped, normal_sf
 from .detect.stats import BlockBootstrap
-
-def check_heldout(names: list[str], heldout: list[str] | None) -> None:
-    """Raise :class:`GapInputError` unless ``heldout`` (flight names, or None/empty for the default split) names
-    only given flights, leaves one for training, and is not given with a single flight (whose second half is
-    always the held-out part). Cheap: the CLI calls it before any flight is read."""
-    if not heldout:
-        return
-    unknown = [h for h in heldout if h not in names]
-    if unknown:
-        raise GapInputError(f"--heldout names {unknown}: not among the given flights {list(names)}")
-    if len(names) == 1:
-        raise GapInputError(f"--heldout {' '.join(heldout)}: with a single flight its second half is held out; "
-                            "--heldout chooses held-out flights among two or more")
-    if len(set(heldout)) == len(set(names)):
-        raise GapInputError("--heldout names every flight: expected at least one training flight")
-
 
 class Diagnosis:
     """Holds the prepared flights, tables and row sets; evaluates models; runs the search.

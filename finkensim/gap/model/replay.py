@@ -34,11 +34,8 @@ from ...sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire
 from ...sensors.ranging_radio import tag_distance_draws
 from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
 from .bulge import bulge_displacement
+from .inputs import GapInputError
 from ...sensors.tracking import PoseNoise, draw_poses_from, pose_draw, pose_normal_table
-
-
-class GapInputError(ValueError):
-    """Logs and config that cannot be diagnosed together; the message says which and why."""
 
 
 @dataclass
