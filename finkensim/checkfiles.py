@@ -55,9 +55,10 @@ def log_summary(log: FlightLog) -> str:
 
 def _scenario_summary(path: Path) -> str:
     from .default_scenario import load_scenario
-    from .scenario import preflight
 
     cfg = load_scenario(path)
+    from .scenario import preflight  # the engine (numba): only for a scenario that loads
+
     sim = cfg.simulation
     preflight(cfg)  # every check `run` makes before it flies (ranges, mixture files, sensors, steps, placement)
     T = int(round(sim.duration / sim.dt)) + 1

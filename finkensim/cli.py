@@ -84,10 +84,11 @@ def cmd_run(args) -> int:
     from .compiletime import compile_timer
     from .config import ConfigError
     from .flightlog import save
-    from .scenario import simulate_flight
 
     cfg = _load_scenario_arg(prog, args.scenario)
     _output_dir(prog, args.out, create=False)  # created once the flight ran: bad input leaves nothing behind
+    from .scenario import simulate_flight  # the engine (numba): only once the input passed
+
 
     t0 = time.perf_counter()
     try:

@@ -27,7 +27,7 @@ def one_line(text: str) -> str:
 def load_scenario_arg(prog: str, scenario: str | None):
     """The Config of the scenario file ``scenario`` (None: the built-in scenario), or a UsageError naming the file."""
     from .config import ConfigError
-    from .scenario import load_scenario
+    from .default_scenario import load_scenario  # not .scenario: a refused file never imports the engine
 
     if scenario is None:
         return load_scenario(None)
