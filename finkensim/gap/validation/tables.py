@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import math
 
-from .cases import CASES
+from .cases import CASES, essential, explains
 
-__all__ = ["wilson", "withheld", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
+__all__ = ["wilson", "withheld", "judged", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
 
 
 def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -42,10 +42,33 @@ def withheld(case: str) -> set[str]:
     return {c.effect} if c is not None and c.effect is not None else set()
 
 
+def judged(row: dict) -> bool:
+    """Whether a trial was right, by the current rule, from its row: a pair trial is right when its verdict is a
+    significant, explained gap whose effects explain both withheld ones (each named, or nested in a named one:
+    :data:`~finkensim.gap.validation.cases.NESTED`); any other trial (and a row without the verdict's
+    fields) keeps the row's ``correct``. Rows written
+    before the nesting rule are judged alike.
+
+    Parameters
+    ----------
+    row : dict
+        One row of ``trials.jsonl``.
+
+    Returns
+    -------
+    bool
+    """
+    if "+" not in row["case"] or "significant" not in row or "effects" not in row:  # no verdict to judge again
+        return bool(row["correct"])
+    return bool(row["significant"]) and not row["unexplained"] and explains(row.get("effects") or (),
+                                                                          withheld(row["case"]))
+
+
 def exactly_withheld(row: dict) -> bool:
     """A trial named exactly the withheld effects: it is right (``row["correct"]``) and ``verdict.effects`` holds
-    every withheld effect and nothing else (a control: no effect at all). Computed from the row, so it also reads
-    rows written before the column existed.
+    every withheld effect and nothing else (a control: no effect at all), an effect nested in another of the same
+    set (:data:`~finkensim.gap.validation.cases.NESTED`) counting as that one. Computed from the row, so it also
+    reads rows written before the column existed.
 
     Parameters
     ----------
@@ -57,7 +80,7 @@ def exactly_withheld(row: dict) -> bool:
     bool
         No effect missing and none extra.
     """
-    return bool(row["correct"]) and set(row.get("effects") or ()) == withheld(row["case"])
+    return judged(row) and essential(row.get("effects") or ()) == essential(withheld(row["case"]))
 
 
 def confusion(rows: list[dict]):
@@ -72,6 +95,7 @@ def confusion(rows: list[dict]):
         df["correction_shrink"] = math.nan
     if "found_by" not in df:  # rows from before the targeted test
         df["found_by"] = None
+    df["correct"] = [judged(r) for r in rows]
     df["exactly"] = [exactly_withheld(r) for r in rows]
     df["verdict"] = [("no gap" if not r["significant"] else ("unexplained" if r["unexplained"] else r["named"]))
                      for r in rows]
@@ -128,7 +152,7 @@ def pair_tally(rows: list[dict]) -> tuple[list[str], dict[str, tuple[int, int]]]
     for r in rows:
         if "+" in r["case"]:
             k, n = tally.get(r["case"], (0, 0))
-            tally[r["case"]] = (k + bool(r["correct"]), n + 1)
+            tally[r["case"]] = (k + judged(r), n + 1)
     effects = [c.name for c in CASES.values() if c.effect is not None and any(c.name in p.split("+") for p in tally)]
     return effects, tally
 
