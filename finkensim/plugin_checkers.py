@@ -229,10 +229,6 @@ def check_task(task, cfg: Config | None = None, seed: int = 0, n_envs: int = 3) 
                           f"{runs[1].tolist()} (expected deterministic rewards)")
 
 
-#: the sensors an effect may name (the gap diagnosis's sensor names)
-EFFECT_SENSORS = ("ultrasonic", "ranging", "imu")
-
-
 def _effect_values(effect, fraction: float) -> dict:
     """Each parameter of ``effect`` at ``fraction`` of its range (integers rounded)."""
     return {p.name: (round(p.lo + fraction * (p.hi - p.lo)) if p.integer else p.lo + fraction * (p.hi - p.lo))
@@ -240,7 +236,9 @@ def _effect_values(effect, fraction: float) -> dict:
 
 
 def _keys(model) -> dict:
-    return {sensor: model.sensor_key(sensor) for sensor in EFFECT_SENSORS}
+    from .gap.model.params import SENSORS  # the sensors an effect may name
+
+    return {sensor: model.sensor_key(sensor) for sensor in SENSORS}
 
 
 def _check_effect_fit(name: str, fit) -> None:
@@ -282,16 +280,16 @@ def check_effect(effect, cfg: Config | None = None) -> None:
         Naming the check that failed, the value and what was expected.
     """
     from .gap.attribute.effects import Effect
-    from .gap.model.params import ModelParams
+    from .gap.model.params import SENSORS, ModelParams
 
     if not isinstance(effect, Effect):
         raise PluginError(f"check_effect({effect!r}): expected a finkensim.gap.attribute.effects.Effect")
     name = f"effect {effect.name!r}"
     if not isinstance(effect.name, str) or not effect.name:
         _fail(name, "expected a non-empty name")
-    unknown = [s for s in effect.sensors if s not in EFFECT_SENSORS]
+    unknown = [s for s in effect.sensors if s not in SENSORS]
     if not effect.sensors or unknown:
-        _fail(name, f"sensors = {effect.sensors!r}: expected one or more of {EFFECT_SENSORS}")
+        _fail(name, f"sensors = {effect.sensors!r}: expected one or more of {SENSORS}")
     for prm in effect.params:
         if not (np.isfinite(prm.lo) and np.isfinite(prm.hi) and prm.lo < prm.hi):
             _fail(name, f"parameter {prm.name!r} has bounds [{prm.lo}, {prm.hi}]: expected finite lo < hi")
@@ -306,7 +304,7 @@ def check_effect(effect, cfg: Config | None = None) -> None:
             _fail(name, f"start value of {prm.name!r} is {v!r}: expected a value in [{prm.lo}, {prm.hi}] (or 0, "
                         "or None where the base model leaves it to the logs)")
     neutral = _keys(effect.apply(base, start))
-    for sensor in EFFECT_SENSORS:
+    for sensor in SENSORS:
         if neutral[sensor] != before[sensor]:
             _fail(name, f"at its start values {start} the {sensor} model differs from the base model: expected "
                         "neutral start values to change nothing")
@@ -321,7 +319,7 @@ def check_effect(effect, cfg: Config | None = None) -> None:
         if _keys(base) != before:
             _fail(name, f"apply at {values} changed the base model in place: expected a pure function")
         got = _keys(model)
-        for sensor in EFFECT_SENSORS:
+        for sensor in SENSORS:
             if sensor not in effect.sensors and got[sensor] != before[sensor]:
                 _fail(name, f"apply at {values} changed the {sensor} model, which the effect does not name "
                             f"(sensors = {effect.sensors})")
