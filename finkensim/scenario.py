@@ -11,6 +11,9 @@ compiled loop of :class:`finkensim.swarm.SwarmSim` (sense → behave → step) a
 the loop (for a closed-loop behaviour, the very readings it acted on). Sensor readings join the log in
 one place, :func:`sensor_blocks`, so each sensor model plugs in without touching the rest of the
 pipeline. The default scenario itself lives in :mod:`finkensim.default_scenario` (re-exported here).
+
+:func:`fly_recorded_poses` is the other way to fly a config: its sensors along poses someone recorded (a real
+flight's tracked poses, heights included), so simulated and real readings of the same motion stand side by side.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from . import __version__
 from .budget import check_memory, flight_advice, flight_arrays
 from .config import Config, ConfigError
 from .default_scenario import DEFAULT_SCENARIO_TOML, default_scenario_path, load_scenario
-from .flightlog import FlightLog, validate
+from .flightlog import HEIGHTS, FlightLog, heights, validate
 from .swarm import SwarmRecord, SwarmSim, needs_sensors
 from .world import Trajectory, World
 
@@ -34,6 +37,7 @@ __all__ = [
     "load_scenario",
     "flight_log",
     "flight_record_names",
+    "fly_recorded_poses",
     "sensor_blocks",
     "simulate_flight",
     "preflight",
@@ -260,3 +264,69 @@ def _tracked(pose, log_cfg, seed: int, env_id: int):
     tracked_poses(pos, yaw, float(log_cfg.tracking_sigma_xy), float(log_cfg.tracking_sigma_yaw), int(seed), env_id,
                   out_pos, out_yaw)
     return np.concatenate([out_pos, np.arctan2(np.sin(out_yaw), np.cos(out_yaw))[..., None]], axis=-1)
+
+
+def fly_recorded_poses(log: FlightLog, cfg: Config | str | Path | Mapping[str, Any] | None = None, *,
+                       seed: int | None = None) -> FlightLog:
+    """The config's ranging sensor flown along a log's recorded poses: a flight log of the same motion whose readings
+    the simulator made.
+
+    The copters do not fly themselves: at every sample of ``log`` they sit at its poses (and heights, the extra
+    ``z``, so distances are 3-D where the log has them), and the ranging readings are the engine's kernel at those
+    poses (:func:`~finkensim.sensors.ranging.readings_along_poses`): sample k is step k of environment 0 of the run
+    ``seed``, so on a simulated flight's own true poses it reproduces that flight's readings. ``ranging.latency``
+    shows the reading of that many samples earlier, as in the engine (the log's sample period is the step).
+
+    Parameters
+    ----------
+    log : FlightLog
+        The recorded flight: ``t``, ``arena``, ``pose``, ``copter_ids`` and the optional heights ``z`` are used; its
+        own readings are not read.
+    cfg : Config, str, Path, Mapping or None
+        The scenario whose ``[ranging]`` section is flown (a Config, TOML path or text, dict; None = the default
+        scenario); ``ranging.enabled`` must be true and ``ranging.beacons`` empty (fixed nodes are copters of the
+        log).
+    seed : int, optional
+        The run seed of the readings' random numbers (default ``simulation.seed``).
+
+    Returns
+    -------
+    FlightLog
+        ``t``, ``arena``, ``pose``, ``copter_ids`` and ``z`` of ``log``; ``ranging`` (T, N, N) m simulated at every
+        sample (NaN only for a reading lost to ``ranging.dropout_*``); meta ``source``, ``seed``, ``config`` and
+        the log's ``copter_radius``.
+
+    Raises
+    ------
+    ConfigError
+        Ranging disabled, beacons configured, or a latency on a log whose samples are not evenly spaced.
+    """
+    from .sensors.latency import delayed_steps, lag_steps
+    from .sensors.ranging import RangingModel, readings_along_poses
+
+    cfg = load_scenario(cfg)
+    rc = cfg.ranging
+    if not rc.enabled:
+        raise ConfigError("ranging.enabled = false: fly_recorded_poses flies the ranging sensor; expected true")
+    if len(rc.beacons):
+        raise ConfigError(f"ranging.beacons = {list(rc.beacons)!r}: expected none when flying recorded poses "
+                          "(a fixed node is a copter of the log, tracked at its place)")
+    seed = cfg.simulation.seed if seed is None else int(seed)
+    t = np.asarray(log.t, dtype=np.float64)
+    readings = readings_along_poses(log.pose, RangingModel.from_config(rc), z=heights(log), seed=seed)
+    if rc.latency > 0.0 and t.size > 1:
+        dt = np.diff(t)
+        if dt.max() - dt.min() > 1e-6 * dt.mean():
+            raise ConfigError(f"ranging.latency = {rc.latency!r} s: expected 0 for a log whose samples are not evenly "
+                              f"spaced (intervals {dt.min():g}..{dt.max():g} s); the latency counts samples")
+        readings = readings[delayed_steps(np.arange(t.size), lag_steps(rc.latency, float(dt.mean())), t.size)]
+    extras = {} if heights(log) is None else {HEIGHTS: heights(log).copy()}
+    meta = {"source": f"finkensim {__version__}: ranging flown along the poses of {log.meta.get('source', 'a log')}",
+            "seed": seed, "config": json.loads(json.dumps(cfg.to_dict()))}
+    if "copter_radius" in log.meta:
+        meta["copter_radius"] = log.meta["copter_radius"]
+    out = FlightLog(t=t.copy(), arena=np.asarray(log.arena, dtype=np.float64).copy(),
+                    pose=np.asarray(log.pose, dtype=np.float64).copy(), copter_ids=np.asarray(log.copter_ids).copy(),
+                    ranging=readings, meta=meta, extras=extras)
+    validate(out)
+    return out

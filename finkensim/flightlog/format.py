@@ -220,6 +220,55 @@ class FlightLog:
         """True if the log carries IMU readings."""
         return self.imu_acc is not None
 
+    # -- time windows -------------------------------------------------------------------------
+    def between(self, start: float, stop: float) -> "FlightLog":
+        """The part of the flight with ``start`` <= t < ``stop``: a new log of those samples (times unchanged).
+
+        Every array with a time axis is cut along it: ``t``, ``pose`` and the sensor readings, and each extra whose
+        first axis has T entries (heights ``z``, ideal values, …); the other arrays (``arena``, mounting, an
+        extra of another length), ``meta`` and the copters are kept. Nothing is re-sampled or shifted.
+
+        Parameters
+        ----------
+        start : float
+            First time kept, s (inclusive).
+        stop : float
+            End of the window, s (exclusive).
+
+        Returns
+        -------
+        FlightLog
+            The samples in the window (copies).
+
+        Raises
+        ------
+        FlightLogError
+            A window that is not a pair of numbers with start < stop, or that holds fewer than 2 samples.
+        """
+        try:
+            a, b = float(start), float(stop)
+        except (TypeError, ValueError):
+            raise FlightLogError(f"time window ({start!r}, {stop!r}): expected two numbers in s") from None
+        if not a < b:
+            raise FlightLogError(f"time window ({start!r}, {stop!r}) s: expected start < stop")
+        t = np.asarray(self.t, dtype=np.float64)
+        keep = (t >= a) & (t < b)
+        if keep.sum() < 2:
+            raise FlightLogError(f"time window [{a:g}, {b:g}) s holds {int(keep.sum())} of the log's {t.size} samples "
+                                 f"(t = {t[0]:g} .. {t[-1]:g} s): expected at least 2")
+        T = t.size
+
+        def cut(value):
+            return None if value is None else np.asarray(value)[keep].copy()
+
+        extras = {k: (np.asarray(v)[keep].copy() if np.ndim(v) and np.shape(v)[0] == T else v)
+                  for k, v in (self.extras or {}).items()}
+        return FlightLog(t=t[keep].copy(), arena=self.arena, pose=cut(self.pose), copter_ids=self.copter_ids,
+                         ultrasonic=cut(self.ultrasonic), ultrasonic_yaw=self.ultrasonic_yaw,
+                         ultrasonic_offset=self.ultrasonic_offset, ranging=cut(self.ranging),
+                         imu_acc=cut(self.imu_acc), imu_gyro=cut(self.imu_gyro), meta=dict(self.meta or {}),
+                         extras=extras)
+
     # -- comparison ---------------------------------------------------------------------------
     def equals(self, other: "FlightLog") -> bool:
         """True if every array, ``meta`` and ``extras`` are equal (NaN equals NaN, values not dtypes).

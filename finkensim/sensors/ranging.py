@@ -54,7 +54,7 @@ from ..arrays import as_array, as_env_ids, as_points, check_inplace
 from ..config import ConfigError
 from .mixture import Mixture, MixtureError
 from .ranging_kernels import (MODE_GAUSSIAN, MODE_MIXTURE, MODE_NONE, MODE_SEED, MODES, RangingParams,
-                              ranging_batch, row_key, sample_readings)
+                              ranging_along_poses, ranging_batch, row_key, sample_readings)
 from .correction_table import NO_TABLE, CorrectionTable, read_correction
 from .ranging_radio import RadioParams, neutral_radio
 from .ranging_table import ResponsibilityTable, cached_table
@@ -74,6 +74,7 @@ __all__ = [
     "ResponsibilityTable",
     "ideal_ranges",
     "ranging_readings",
+    "readings_along_poses",
 ]
 
 
@@ -284,6 +285,52 @@ def ranging_readings(positions, beacons, seed: int, env_ids, step: int, params: 
     if yaws.shape != pos.shape[:2]:
         raise ConfigError(f"yaw has shape {yaws.shape}: expected {pos.shape[:2]} (B, N) rad like positions")
     ranging_batch(pos, np.ascontiguousarray(yaws), bea, np.int64(seed), env, np.int64(step), p, out)
+    return out
+
+
+def readings_along_poses(pose, params: RangingModel, *, z=None, seed: int = 0, env: int = 0,
+                         step0: int = 0) -> np.ndarray:
+    """The copters' ranging readings of each other along given poses (a recorded flight): (T, N, N) float64, m.
+
+    The simulator's own kernel (:func:`~finkensim.sensors.ranging_kernels.ranging_along_poses`): sample k reads
+    what the engine reads at step ``step0 + k`` of environment ``env`` of the run ``seed`` with the copters at
+    those poses, at 3-D (tag-to-tag) distances where heights are given. Row i = measuring copter, diagonal 0, a
+    reading lost to dropout NaN. Fixed beacons (``ranging.beacons``) are not read: nodes are the poses' copters.
+
+    Parameters
+    ----------
+    pose : array_like, shape (T, N, 3)
+        x m, y m, heading rad of each copter at each sample (a flight log's ``pose``).
+    params : RangingModel
+        The sensor model (a ``RangingConfig`` is accepted and converted, cached).
+    z : array_like, shape (T, N), optional
+        Each copter's height, m (a flight log's ``z``); None = every copter at one height (planar distances).
+    seed : int
+        The run seed of the counter keys.
+    env : int
+        The environment index of the counter keys.
+    step0 : int
+        The step index of sample 0 (sample k is step ``step0 + k``).
+
+    Returns
+    -------
+    ndarray, shape (T, N, N)
+        Readings, m.
+
+    Raises
+    ------
+    ConfigError
+        A wrong array, named.
+    """
+    if not isinstance(params, RangingModel):
+        params = _model_for_config(params)
+    p = as_array("pose", pose, np.float64, ("T", "N", 3), unit="m, m, rad", finite=True)
+    T, n, _ = p.shape
+    h = np.zeros((T, n)) if z is None else as_array("z", z, np.float64, ("T", "N"), sizes={"T": T, "N": n}, unit="m",
+                                                        finite=True)
+    out = np.empty((T, n, n))
+    ranging_along_poses(np.ascontiguousarray(p[..., :2]), h, np.ascontiguousarray(p[..., 2]), np.int64(seed),
+                        np.int64(env), np.int64(step0), params.params, out)
     return out
 
 

@@ -44,7 +44,7 @@ from .ranging_radio import RadioParams, corrected_reading, los_clearance, radio_
 __all__ = [
     "MODES", "MODE_GAUSSIAN", "MODE_MIXTURE", "MODE_NONE", "MODE_SEED", "RangingParams",
     "fast_reading", "pick_component", "pick_components", "ranging_batch", "ranging_env", "ranging_grid_env",
-    "ranging_reach", "ranging_radio_env",
+    "ranging_reach", "ranging_radio_env", "radio_reading", "ranging_along_poses",
     "reading_rule", "row_key", "sample_readings", "seed_reading", "COMP_MEAN", "COMP_SLOPE", "COMP_COND_MEAN",
     "COMP_COND_STD", "COMP_LOG_WN", "COMP_HALF_INV_COVAR", "COMP_SEED_STD",
 ]
@@ -208,6 +208,25 @@ def reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp):
 
 
 @njit(cache=True, inline="always")
+def radio_reading(x, pos_b, i, j, b, bx, by, key, ckey, ranging):
+    """Copter i's reading m of column j with the radio effects of ``ranging``, at true (tag) distance x m: beyond
+    ``max_range`` exactly ``max_range``; a lost reading (dropout) NaN; else the error model's draw
+    (:func:`reading_rule`) through :func:`radio_shift`, or with a learned correction :func:`corrected_reading`
+    (uniform j of ``ckey``). The line-of-sight clearance (NLOS near a third copter) is measured among the copters
+    ``pos_b`` (N, 2) m from copter i to node b at (bx, by) m (b = −1 for a beacon). ``key``: copter i's row key."""
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
+    if x > max_range:
+        return max_range
+    if radio_dropped(x, key, j, ranging):
+        return np.nan
+    clear = los_clearance(pos_b, i, b, bx, by) if ranging.nlos_on else np.inf
+    if ranging.correction.shape[0] > 0:
+        return corrected_reading(x, i, j, clear, ckey, j, ranging)
+    y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
+    return radio_shift(y, i, j, clear, key, j, ranging)
+
+
+@njit(cache=True, inline="always")
 def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
     """:func:`ranging_env` with the radio effects of ``ranging`` (:mod:`finkensim.sensors.ranging_radio`): the
     tag-to-tag distance decides the range and feeds the error model, whose draw :func:`radio_shift` turns into
@@ -216,7 +235,6 @@ def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
     ``counter_key(seed, env, step, i, STREAM_CORRECTION_RANGING)``)."""
     n = pos_b.shape[0]
     m = beacons.shape[0]
-    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
     corrected = ranging.correction.shape[0] > 0
     for i in range(n):
         key = counter_key(seed, env, step, i, STREAM_RANGING)
@@ -241,17 +259,7 @@ def ranging_radio_env(pos_b, yaw_b, beacons, seed, env, step, ranging, out):
                 dx = bx - xi
                 dy = by - yi
                 x = np.sqrt(dx * dx + dy * dy)
-            if x > max_range:
-                out[i, j] = max_range
-            elif radio_dropped(x, key, j, ranging):
-                out[i, j] = np.nan
-            else:
-                clear = los_clearance(pos_b, i, j if j < n else -1, bx, by) if ranging.nlos_on else np.inf
-                if corrected:
-                    out[i, j] = corrected_reading(x, i, j, clear, ckey, j, ranging)
-                else:
-                    y = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
-                    out[i, j] = radio_shift(y, i, j, clear, key, j, ranging)
+            out[i, j] = radio_reading(x, pos_b, i, j, j if j < n else -1, bx, by, key, ckey, ranging)
 
 
 @njit(cache=True, inline="always")
@@ -362,6 +370,34 @@ def ranging_batch(positions, yaws, beacons, seed, env_ids, step, ranging, out):
     ``beacons`` (M, 2) m, ``env_ids`` (B,) int64 → out (B, N, N + M) float64 m."""
     for b in prange(positions.shape[0]):
         ranging_env(positions[b], yaws[b], beacons, seed, env_ids[b], step, ranging, out[b])
+
+
+@njit(cache=True, parallel=True)
+def ranging_along_poses(pos, z, yaw, seed, env, step0, ranging, out):
+    """The copters' readings of each other along given poses: out (T, N, N) float64 m (diagonal 0) of positions
+    ``pos`` (T, N, 2) m, heights ``z`` (T, N) m and headings ``yaw`` (T, N) rad, sample k keyed as step
+    ``step0 + k`` of environment ``env`` of the run ``seed`` (in parallel over the samples).
+
+    Each reading is the engine's (:func:`ranging_env` without beacons, bit for bit where every height is 0) at the
+    3-D tag-to-tag distance (:func:`~finkensim.sensors.ranging_radio.tag_distance` with the heights): the error model
+    (:func:`reading_rule`) and, with radio effects or a learned correction, :func:`radio_reading`."""
+    T, n = pos.shape[0], pos.shape[1]
+    mode, max_range, sigma, inv_h, prob, alias, comp = ranging[:7]
+    for k in prange(T):
+        step = step0 + k
+        for i in range(n):
+            key = counter_key(seed, env, step, i, STREAM_RANGING)
+            ckey = counter_key(seed, env, step, i, STREAM_CORRECTION_RANGING)
+            pose_i = (pos[k, i, 0], pos[k, i, 1], z[k, i], yaw[k, i])
+            for j in range(n):
+                if j == i:
+                    out[k, i, j] = 0.0
+                    continue
+                x = tag_distance(ranging, i, pose_i, j, (pos[k, j, 0], pos[k, j, 1], z[k, j], yaw[k, j]), False)
+                if ranging.radio_on:
+                    out[k, i, j] = radio_reading(x, pos[k], i, j, j, pos[k, j, 0], pos[k, j, 1], key, ckey, ranging)
+                else:
+                    out[k, i, j] = reading_rule(x, key, j, mode, max_range, sigma, inv_h, prob, alias, comp)
 
 
 @njit(cache=True, parallel=True)

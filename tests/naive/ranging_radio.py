@@ -63,10 +63,12 @@ def naive_dropout_probability(x, a, b):
     return 0.0 if a <= -100.0 else 1.0 / (1.0 + math.exp(-(a + b * x)))
 
 
-def naive_radio_readings(positions, yaw, beacons, seed, env_ids, step, model):
-    """Reference of ``ranging_readings`` with the radio effects of ``model.radio``: (B, N, N + M)."""
+def naive_radio_readings(positions, yaw, beacons, seed, env_ids, step, model, z=None):
+    """Reference of ``ranging_readings`` with the radio effects of ``model.radio``: (B, N, N + M); ``z`` (B, N) m
+    the copters' heights (None: 0, planar; beacons sit at height 0)."""
     radio = model.radio
     positions = np.asarray(positions, float)
+    h = np.zeros(positions.shape[:2]) if z is None else np.asarray(z, float)
     beacons = np.asarray(beacons, float).reshape(-1, 2)
     n_env, n, _ = positions.shape
     out = np.zeros((n_env, n, n + len(beacons)))
@@ -74,12 +76,12 @@ def naive_radio_readings(positions, yaw, beacons, seed, env_ids, step, model):
         for i in range(n):
             key = row_key(seed, env_ids[e], step, i)
             u, z = naive_row_numbers(model, seed, env_ids[e], step, i, n + len(beacons))
-            ti = naive_tag(radio, i, *positions[e, i], 0.0, yaw[e, i])
+            ti = naive_tag(radio, i, *positions[e, i], h[e, i], yaw[e, i])
             for j in range(n + len(beacons)):
                 if j == i:
                     continue
                 end = positions[e, j] if j < n else beacons[j - n]
-                tj = naive_tag(radio, j, *end, 0.0, yaw[e, j]) if j < n else np.array([*end, 0.0])
+                tj = naive_tag(radio, j, *end, h[e, j], yaw[e, j]) if j < n else np.array([*end, 0.0])
                 x = float(np.linalg.norm(tj - ti))
                 if x > model.max_range:
                     out[e, i, j] = model.max_range
