@@ -8,6 +8,7 @@ The public API, for notebooks (``import finkensim as fs``):
 ``fs.World``              the arena and copter physics: pure ``step`` of a batched state (B environments)
 ``fs.SwarmSim``           the compiled closed loop: world + sensors + behaviour over B environments
 ``fs.simulate_flight``    one flight of the configured scenario as a :class:`FlightLog`
+``fs.fly_recorded_poses`` a config's ranging flown along a log's recorded poses (e.g. a real flight's mocap)
 ``fs.run_episode``        one Monte-Carlo episode's metrics
 ``fs.FlightLog``          the flight-log record (``docs/formats/flightlog.md``); ``fs.load_log(path)`` reads one
 ``fs.run_sweep``          a Monte-Carlo sweep over a design (TOML), stored as Parquet, resumable
@@ -35,6 +36,7 @@ _API = {
     "SwarmSim": "finkensim.swarm",
     "load_scenario": "finkensim.scenario",
     "simulate_flight": "finkensim.scenario",
+    "fly_recorded_poses": "finkensim.scenario",
     "run_episode": "finkensim.episode",
     "FlightLog": "finkensim.flightlog",
     "FlightLogError": "finkensim.flightlog",
