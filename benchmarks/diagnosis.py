@@ -5,7 +5,10 @@
   thread, as the process-pool workers of ``gap-validate --executor process`` run them. Measured: CPU seconds
   (``time.process_time``) of each trial after a warm-up trial (the kernels compiled or loaded first), and the
   verdict (right / wrong), so a change that cuts time also shows whether it changed an answer.
-* **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials ÷ the machine's cores.
+* **The pairs matrix**, estimated: (mean trial CPU of these trials) × the matrix's trials (every pair of today's
+  catalogue × :data:`PAIRS_MATRIX_SEEDS`) ÷ the machine's cores.
+* **The verdict sample** (``--sample FILE``, a run of ``python -m benchmarks.diagnosis_agreement run --sample
+  verdict``): its median and mean trial against the same targets, with its right and exact verdicts.
 * **Where the trials' CPU goes**: CPU seconds of each effect's fits (:meth:`~finkensim.gap.diagnosis.Diagnosis.fit`,
   every round) and of the held-out scoring, summed over the trials.
 * **examples/gap_timing.py** (``finkensim gap`` on 10 copters × 10 min, in a subprocess): wall-clock seconds and peak
@@ -40,7 +43,7 @@ TRIALS = (("latency", 51), ("latency", 52), ("latency", 53), ("sound_speed", 51)
           ("sound_speed+crosstalk_geometric", 51), ("wall_bulge+sonar_bias", 5), ("imu_bias", 51),
           ("ranging_nlos+sonar_bias", 51))
 FLIGHTS, DURATION = 2, 30.0  # per trial, as in the validation matrices
-PAIRS_MATRIX_TRIALS = 1280  # the pairs matrix of today's catalogue (docs/validation)
+PAIRS_MATRIX_SEEDS = 20  # trials per pair in the pairs matrix (docs/validation)
 TARGET_TRIAL_CPU = 3.0  # s, median warm trial
 TARGET_MATRIX_HOURS = 1.0
 TARGET_GAP_TIMING = 5.0  # s, examples/gap_timing.py
@@ -84,6 +87,26 @@ def fit_clock():
         yield clock
     finally:
         cls.fit, cls.score_heldout = fit, score
+
+
+def pairs_matrix_trials() -> int:
+    """Trials of the pairs matrix of today's catalogue: every pair (:func:`~finkensim.gap.validation.cases.all_pairs`)
+    × :data:`PAIRS_MATRIX_SEEDS`."""
+    from finkensim.gap.validation.cases import all_pairs
+
+    return len(all_pairs()) * PAIRS_MATRIX_SEEDS
+
+
+def verdict_sample(path: str) -> dict:
+    """The CPU seconds and verdicts of a verdict-sample run (``python -m benchmarks.diagnosis_agreement run --sample
+    verdict --out FILE``): trials, median and mean CPU s, right and exactly counts."""
+    import json
+
+    with open(path) as fh:
+        rows = [json.loads(line) for line in fh if line.strip()]
+    cpu = [r["cpu_s"] for r in rows]
+    return dict(path=path, trials=len(rows), median_cpu_s=statistics.median(cpu), mean_cpu_s=statistics.mean(cpu),
+                right=sum(r["correct"] for r in rows), exactly=sum(bool(r.get("exactly")) for r in rows))
 
 
 def time_trials(trials=TRIALS, log=print, warmup=WARMUP, duration: float = DURATION, threads: int = 1,
@@ -141,17 +164,22 @@ def gap_timing(duration: float = 600.0) -> dict:
     return dict(duration=duration, seconds=float(m.group(1)), peak_gb=float(m.group(2)))
 
 
-def run(log=print, with_gap_timing: bool = True, with_memory: bool = True) -> dict:
+def run(log=print, with_gap_timing: bool = True, with_memory: bool = True, sample: str | None = None) -> dict:
     """The section's measurements: :data:`TRIALS` timed (:func:`time_trials`) with their CPU per effect fitted,
     the pairs matrix estimated, ``examples/gap_timing.py`` on 10 min (``with_gap_timing``) and on
-    :data:`MEMORY_DURATION` s (``with_memory``, for the peak memory). Returns the numbers and their "markdown"."""
+    :data:`MEMORY_DURATION` s (``with_memory``, for the peak memory); ``sample``: a verdict-sample file
+    (:func:`verdict_sample`) whose figures are judged against the targets too. Returns the numbers and their
+    "markdown"."""
     load0 = os.getloadavg()
     clock: dict = {}
     trials = time_trials(log=log, clock=clock)
     cpu = [r["cpu_s"] for r in trials]
+    n_matrix = pairs_matrix_trials()
     res = dict(trials=trials, median_cpu_s=statistics.median(cpu), cores=os.cpu_count() or 1,
-               matrix_hours=statistics.mean(cpu) * PAIRS_MATRIX_TRIALS / (os.cpu_count() or 1) / 3600,
+               matrix_trials=n_matrix, matrix_hours=statistics.mean(cpu) * n_matrix / (os.cpu_count() or 1) / 3600,
                fits=clock)
+    if sample is not None:
+        res["sample"] = verdict_sample(sample)
     if with_gap_timing:
         log("diagnosis: examples/gap_timing.py (10 copters x 10 min)")
         res["gap_timing"] = gap_timing()
@@ -189,9 +217,17 @@ def markdown(res: dict) -> str:
     L += ["", "| target | measured | met |", "|---|---:|---|",
           f"| warm validation trial ≤ {TARGET_TRIAL_CPU:g} s of CPU (median) | {res['median_cpu_s']:.1f} s | "
           f"{_met(res['median_cpu_s'] <= TARGET_TRIAL_CPU)} |",
-          f"| pairs matrix ({PAIRS_MATRIX_TRIALS} trials) on {res['cores']} cores ≤ {TARGET_MATRIX_HOURS:g} h "
+          f"| pairs matrix ({res['matrix_trials']} trials) on {res['cores']} cores ≤ {TARGET_MATRIX_HOURS:g} h "
           f"(mean trial above × trials ÷ cores) | {res['matrix_hours']:.1f} h | "
           f"{_met(res['matrix_hours'] <= TARGET_MATRIX_HOURS)} |"]
+    vs = res.get("sample")
+    if vs is not None:
+        hours = vs["mean_cpu_s"] * res["matrix_trials"] / res["cores"] / 3600
+        L += [f"| verdict sample (`{vs['path']}`, {vs['trials']} trials, {vs['right']} right, {vs['exactly']} "
+              f"exactly): median trial ≤ {TARGET_TRIAL_CPU:g} s of CPU | {vs['median_cpu_s']:.1f} s | "
+              f"{_met(vs['median_cpu_s'] <= TARGET_TRIAL_CPU)} |",
+              f"| pairs matrix from the verdict sample's mean trial ({vs['mean_cpu_s']:.1f} s) ≤ "
+              f"{TARGET_MATRIX_HOURS:g} h | {hours:.1f} h | {_met(hours <= TARGET_MATRIX_HOURS)} |"]
     if gt is None:
         L.append(f"| examples/gap_timing.py ≤ {TARGET_GAP_TIMING:g} s | — | not measured |")
     elif "error" in gt:
@@ -218,6 +254,8 @@ def main(argv=None) -> int:
                     help="time these trials only (the first once more before, as the warm-up), e.g. latency:51")
     ap.add_argument("--threads", type=int, default=1, help="numba threads of the trials (default 1)")
     ap.add_argument("--profile", action="store_true", help="with --trials: print where each trial's CPU goes")
+    ap.add_argument("--sample", default=None, metavar="FILE",
+                    help="also judge a verdict-sample run (benchmarks.diagnosis_agreement run --sample verdict)")
     a = ap.parse_args(argv)
     log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
     if a.trials:
@@ -228,7 +266,8 @@ def main(argv=None) -> int:
                   f"{'right' if r['correct'] else 'wrong'}; load average {os.getloadavg()[0]:.1f}")
             print(r.get("profile", ""), end="")
         return 0
-    print(run(log=log, with_gap_timing=not a.no_gap_timing, with_memory=not (a.no_gap_timing or a.no_memory))["markdown"])
+    print(run(log=log, with_gap_timing=not a.no_gap_timing, with_memory=not (a.no_gap_timing or a.no_memory),
+              sample=a.sample)["markdown"])
     return 0
 
 

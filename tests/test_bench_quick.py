@@ -178,12 +178,19 @@ def test_diagnosis_section_reports_trials_and_targets():
     assert sum(s for _, s in clock.values()) <= rows[0]["cpu_s"] + 1e-6
     from finkensim.gap.diagnosis import Diagnosis
     assert Diagnosis.fit.__name__ == "fit"  # the clock is taken off again
-    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_hours=0.5, load=[1.0] * 6, fits=clock,
+    res = dict(trials=rows, median_cpu_s=rows[0]["cpu_s"], cores=2, matrix_trials=3020, matrix_hours=0.5,
+               load=[1.0] * 6, fits=clock,
                gap_timing=dict(duration=600.0, seconds=4.0, peak_gb=0.5),
                memory=dict(duration=3600.0, seconds=90.0, peak_gb=1.2))
     md = diagnosis.markdown(res)
     assert md.startswith("## Diagnosis") and "| null | 3 |" in md
-    assert "pairs matrix (1280 trials) on 2 cores ≤ 1 h" in md and "| 0.5 h | yes |" in md
+    assert "pairs matrix (3020 trials) on 2 cores ≤ 1 h" in md and "| 0.5 h | yes |" in md
+    from finkensim.gap.validation.cases import all_pairs
+    assert diagnosis.pairs_matrix_trials() == 20 * len(all_pairs())
+    sample = dict(path="s.jsonl", trials=40, median_cpu_s=2.5, mean_cpu_s=3.6, right=38, exactly=35)
+    md_sample = diagnosis.markdown({**res, "sample": sample})
+    assert "40 trials, 38 right, 35 exactly): median trial ≤ 3 s of CPU | 2.5 s | yes |" in md_sample
+    assert "mean trial (3.6 s) ≤ 1 h | 1.5 h | **no** |" in md_sample
     assert "4.0 s, peak 0.50 GB | yes |" in md
     assert "10 copters × 1 h ≤ 1 GB | 1.20 GB (90 s wall clock) | **no** |" in md
     assert "| sonar_bias | " in md

@@ -23,7 +23,7 @@ from .shrink import ShrinkMeter
 from .parsimony import earn_place
 from .targeted import passed
 
-__all__ = ["check_effects", "candidates", "first_round", "Selection", "select_greedy", "keep_earned",
+__all__ = ["check_effects", "candidates", "first_round", "Selection", "select_greedy", "hopeless", "keep_earned",
            "clean_values"]
 
 
@@ -64,7 +64,8 @@ class Selection:
     ``current``, ``cur_scores``, ``cur_gaps`` and ``cur_score`` are the current model, its per-row held-out scores
     and gaps (sensor → (n,)) and its mean held-out score; ``steps`` are (label, effect, rows_score, rows_gap,
     values) tuples; ``pool`` the candidates left, ``ambiguous`` the first pick's near ties, ``runners_up`` the
-    second pick's alternatives, ``lead`` the first round's best, ``earned`` the parsimony step's finding.
+    second pick's alternatives, ``lead`` the first round's best, ``earned`` the parsimony step's finding,
+    ``hopeless`` the first round's candidates that the later rounds do not refit (:func:`hopeless`).
     """
 
     diag: object
@@ -82,6 +83,7 @@ class Selection:
     runners_up: list = field(default_factory=list)
     lead: object = None
     earned: object = None
+    hopeless: frozenset = frozenset()
 
     @classmethod
     def start(cls, diag, found, first) -> "Selection":
@@ -89,7 +91,7 @@ class Selection:
         evaluated = [found.base_scores] + [r.rows_score for r in first]
         steps = [("configured model", None, found.base_scores, found.gap_vals, None)]
         return cls(diag, found, first, diag.base, found.base_scores, found.gap_vals, found.score_before, evaluated,
-                   steps, pool=list(first))
+                   steps, pool=list(first), hopeless=hopeless(first, found.score_before))
 
     def improvement(self, cur_scores, new_scores):
         """(mean, ci, p) of the held-out score's improvement from ``cur_scores`` to ``new_scores``."""
@@ -152,12 +154,16 @@ def select_greedy(sel: Selection, max_added: int, refit_top: int) -> None:
     while found.significant and sel.pool and len(sel.added) < max_added:
         if sel.added:  # refit the leading remaining candidates on top of what was added
             # every remaining effect on a sensor with a gap, plus the leading others (the first round's order
-            # says little once an effect is in)
-            on_gap = [r for r in sel.pool if set(fx.REGISTRY[r.name].sensors) & set(found.gap_sensors)]
-            again = on_gap + [r for r in sel.pool if r not in on_gap][:max(0, refit_top - len(on_gap))]
+            # says little once an effect is in) — but not the hopeless ones: fitted alone, they left the held-out
+            # score no better than the configured model's (:func:`hopeless`)
+            live = [r for r in sel.pool if r.name not in sel.hopeless]
+            on_gap = [r for r in live if set(fx.REGISTRY[r.name].sensors) & set(found.gap_sensors)]
+            again = on_gap + [r for r in live if r not in on_gap][:max(0, refit_top - len(on_gap))]
             sel.pool = sorted((diag.score_heldout(diag.fit(fx.REGISTRY[r.name], sel.current)) for r in again),
                               key=lambda r: r.score_heldout)
             sel.evaluated += [r.rows_score for r in sel.pool]
+            if not sel.pool:
+                break
         # a gap found by the targeted test is what the passing effects describe: the first is one of them
         best = _pick(sel.pool if sel.added or targeted is None else passed(sel.pool, targeted), sel.cur_score,
                      cfg.tie_tolerance)
@@ -195,6 +201,14 @@ def select_greedy(sel: Selection, max_added: int, refit_top: int) -> None:
         sel.steps.append((f"+ {best.name}", best.name, best.rows_score, best.rows_gap, clean_values(best.values)))
         sel.pool = [r for r in sel.pool if r.name != best.name]
         diag.say(f"  added {best.name}: held-out score {best.score_heldout:.4f}")
+
+
+def hopeless(first, score_before: float) -> frozenset:
+    """Names of the first round's candidates that, fitted alone on the configured model, left the held-out score
+    no better than the configured model's ``score_before``: the later rounds do not refit them (an effect that
+    explains none of the held-out gap alone is not the next one to add; refitting every sonar candidate on top of
+    each added effect was a third of a trial's CPU)."""
+    return frozenset(r.name for r in first if not r.score_heldout < score_before)
 
 
 def keep_earned(sel: Selection) -> None:
