@@ -248,3 +248,5 @@ def test_gap_left_compares_both_gaps_in_the_first_diagnosis_units():
     rows = [{"case": "x", "calibrated_significant": True, "calibrated_gap_ratio": 0.5, "calibrated_gap_left": 0.05,
              "calibrated_correction": ""}]
     assert "| 5 % | 0/1 |" in calibrated_table(rows)
+    assert "| n/a | 0/1 |" in calibrated_table([{**rows[0], "gap_before": -0.002}])  # no first gap: nothing left
+    assert math.isnan(gap_left(report({"ultrasonic": -0.01}, {"ultrasonic": 0.2}, []), again))

@@ -54,7 +54,7 @@ def gap_left(first, again) -> float:
         ``again`` lacks one of those sensors.
     """
     gap0 = first.gap_before
-    if not (gap0 and math.isfinite(gap0)):
+    if not (math.isfinite(gap0) and gap0 > 0):
         return math.nan
     d1, d2 = first.details, again.details
     sensors = list(d1.gap_sensors) or list(d1.per_sensor)
@@ -91,7 +91,7 @@ def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: floa
 def calibrated_table(rows: list[dict]) -> str:
     """Markdown: per case, trials, the share with no significant gap after calibration (Wilson 95 % interval), the
     median of what is left of the first diagnosis's held-out gap (``calibrated_gap_left``, in its units; rows written
-    before it existed: ``calibrated_gap_ratio``), and the share of trials whose calibration used the learned
+    before it existed: ``calibrated_gap_ratio``; n/a when no first gap was positive), and the share of trials whose calibration used the learned
     correction.
 
     Parameters
@@ -115,7 +115,9 @@ def calibrated_table(rows: list[dict]) -> str:
         n = len(rs)
         k = sum(not r["calibrated_significant"] for r in rs)
         lo, hi = wilson(k, n)
-        left = [r.get("calibrated_gap_left", r["calibrated_gap_ratio"]) for r in rs]
+        # a first gap that is not positive (null: no gap) has nothing to leave
+        left = [r.get("calibrated_gap_left", r["calibrated_gap_ratio"]) if r.get("gap_before", 1.0) > 0 else math.nan
+                for r in rs]
         ratio = np.nanmedian(left) if n and not np.isnan(left).all() else math.nan
         corr = sum(bool(r.get("calibrated_correction")) for r in rs)
         lines.append(f"| {case} | {n} | {100 * k / n:.0f} % | {100 * lo:.0f}–{100 * hi:.0f} % | "
