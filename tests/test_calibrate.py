@@ -250,3 +250,12 @@ def test_gap_left_compares_both_gaps_in_the_first_diagnosis_units():
     assert "| 5 % | 0/1 |" in calibrated_table(rows)
     assert "| n/a | 0/1 |" in calibrated_table([{**rows[0], "gap_before": -0.002}])  # no first gap: nothing left
     assert math.isnan(gap_left(report({"ultrasonic": -0.01}, {"ultrasonic": 0.2}, []), again))
+
+
+def test_gap_left_of_a_report_against_itself_is_all_of_it(sonar_bias_report):
+    """gap_left averages the sensors gap_before averages: a diagnosis against itself leaves 100 % of its gap."""
+    from finkensim.gap.validation.calibrated import gap_left
+
+    report = sonar_bias_report[0]
+    assert report.gap_before > 0
+    assert gap_left(report, report) == pytest.approx(1.0, rel=1e-12)

@@ -91,8 +91,8 @@ def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: floa
 def calibrated_table(rows: list[dict]) -> str:
     """Markdown: per case, trials, the share with no significant gap after calibration (Wilson 95 % interval), the
     median of what is left of the first diagnosis's held-out gap (``calibrated_gap_left``, in its units; rows written
-    before it existed: ``calibrated_gap_ratio``; n/a when no first gap was positive), and the share of trials whose calibration used the learned
-    correction.
+    before it existed: ``calibrated_gap_ratio``; n/a when no first gap was positive), and the share of trials whose
+    calibration used the learned correction.
 
     Parameters
     ----------
