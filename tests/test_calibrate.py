@@ -225,3 +225,37 @@ def test_a_bulge_refitted_with_the_hinge_law_is_flown_with_its_hinge_weight():
         if hinge is not None:
             want = flexible_version("wall_bulge").apply(ModelParams.from_config(load_config()), values)
             assert ModelParams.from_config(cfg).sensor_key("ultrasonic") == want.sensor_key("ultrasonic")
+
+
+def test_gap_left_compares_both_gaps_in_the_first_diagnosis_units():
+    """A re-diagnosis under a calibrated config normalises by its own (smaller) scale: gap_left undoes it."""
+    from types import SimpleNamespace
+
+    from finkensim.gap.validation.calibrated import calibrated_table, gap_left
+
+    def report(gaps, scales, significant):
+        per = {s: {"gap": g, "significant": s in significant} for s, g in gaps.items()}
+        gap = sum(gaps[s] for s in significant) / len(significant) if significant else sum(gaps.values()) / len(gaps)
+        return SimpleNamespace(gap_before=gap, details=SimpleNamespace(per_sensor=per, scales=scales,
+                                                                       gap_sensors=list(significant)))
+
+    first = report({"ultrasonic": 0.8, "imu": 0.01}, {"ultrasonic": 0.2, "imu": 1.0}, ["ultrasonic"])
+    again = report({"ultrasonic": 0.4, "imu": 0.5}, {"ultrasonic": 0.02, "imu": 1.0}, ["ultrasonic", "imu"])
+    # 0.4 of a scale 0.02 is 0.04 of the first's scale 0.2: 5 % of its gap 0.8 (the imu is not the first's gap)
+    assert gap_left(first, again) == pytest.approx(0.05)
+    assert math.isnan(gap_left(report({"ultrasonic": 0.0}, {"ultrasonic": 0.2}, []), again))
+    assert math.isnan(gap_left(first, report({"imu": 0.5}, {"imu": 1.0}, ["imu"])))  # the first's sensor is missing
+    rows = [{"case": "x", "calibrated_significant": True, "calibrated_gap_ratio": 0.5, "calibrated_gap_left": 0.05,
+             "calibrated_correction": ""}]
+    assert "| 5 % | 0/1 |" in calibrated_table(rows)
+    assert "| n/a | 0/1 |" in calibrated_table([{**rows[0], "gap_before": -0.002}])  # no first gap: nothing left
+    assert math.isnan(gap_left(report({"ultrasonic": -0.01}, {"ultrasonic": 0.2}, []), again))
+
+
+def test_gap_left_of_a_report_against_itself_is_all_of_it(sonar_bias_report):
+    """gap_left averages the sensors gap_before averages: a diagnosis against itself leaves 100 % of its gap."""
+    from finkensim.gap.validation.calibrated import gap_left
+
+    report = sonar_bias_report[0]
+    assert report.gap_before > 0
+    assert gap_left(report, report) == pytest.approx(1.0, rel=1e-12)
