@@ -32,7 +32,7 @@ def test_compare_names_changed_verdicts_and_right_to_wrong(tmp_path):
     assert "wrong -> right: none" in text
     assert "sonar_bias:1 (True, ('sonar_bias',), False) -> (True, (), True)" in text
     assert "largest 0.091" in text  # |0.22 − 0.2| / 0.22
-    assert "median 4.00 -> 2.00, sum 12.0 -> 6.0" in text
+    assert "median 4.00 -> 2.00, mean 4.00 -> 2.00, sum 12.0 -> 6.0" in text
 
 
 def test_compare_counts_exactly_equal_values_and_bit_identical_reports(tmp_path):
