@@ -44,7 +44,7 @@ def range_limits(cfg, logs, names, mode: str = "config"):
     """(config, notes): ``cfg`` unchanged when every sensor's readings fit its ``max_range``; with ``mode`` =
     "from-log", a config whose too-small limits are raised to the logs' largest reading (× 1.05, rounded up to
     0.1 m); notes: sensor → what was decided, in words. With ``mode`` = "config", readings beyond a limit are a
-    :class:`~.replay.GapInputError` naming the sensor, the limit, how many readings and the largest."""
+    :class:`~finkensim.gap.model.inputs.GapInputError` naming the sensor, the limit, how many readings and the largest."""
     if mode not in LIMIT_MODES:
         raise GapInputError(f"limits = {mode!r}: expected one of {', '.join(LIMIT_MODES)}")
     notes, changes = {}, {}

@@ -28,7 +28,7 @@ MIN_BLOCKS = 20
 
 
 def check_plausible(per_sensor: dict) -> None:
-    """Raise a :class:`~finkensim.gap.model.replay.GapInputError` naming the sensor when its held-out gap (``per_sensor[s]["gap"]``,
+    """Raise a :class:`~finkensim.gap.model.inputs.GapInputError` naming the sensor when its held-out gap (``per_sensor[s]["gap"]``,
     normalised) is not finite or exceeds :data:`MAX_PLAUSIBLE_GAP` in magnitude."""
     for s, v in per_sensor.items():
         g = float(v["gap"])
