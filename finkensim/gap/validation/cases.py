@@ -198,6 +198,24 @@ def essential(effects) -> set[str]:
     return {e for e in effects if NESTED.get(e) not in effects}
 
 
+def pair_right(significant: bool, unexplained: bool, named, withheld) -> bool:
+    """A trial withholding several effects is right when its verdict is a significant, explained gap whose effects
+    explain every withheld one (:func:`explains`).
+
+    Parameters
+    ----------
+    significant, unexplained : bool
+        The verdict's ``significant_gap`` and ``unexplained``.
+    named, withheld : iterable of str
+        The verdict's effects and the trial's withheld ones.
+
+    Returns
+    -------
+    bool
+    """
+    return bool(significant) and not unexplained and explains(named, withheld)
+
+
 def explains(named, withheld) -> bool:
     """Every withheld effect is named, or nested (:data:`NESTED`) in a named one, so the named model reproduces the
     truth.
@@ -447,7 +465,7 @@ def run_case(name: str, seed: int, n_flights=2, duration=60.0, n_copters=None, p
     v = report["verdict"]
     named = v["effect"]
     if case.effects:
-        correct = v["significant_gap"] and not v["unexplained"] and explains(v["effects"], case.effects)
+        correct = pair_right(v["significant_gap"], v["unexplained"], v["effects"], case.effects)
     elif name == "null":
         correct = not v["significant_gap"]
     else:

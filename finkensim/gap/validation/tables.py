@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from .cases import CASES, essential, explains
+from .cases import CASES, essential, pair_right
 
 __all__ = ["wilson", "withheld", "judged", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
 
@@ -60,8 +60,7 @@ def judged(row: dict) -> bool:
     """
     if "+" not in row["case"] or "significant" not in row or "effects" not in row:  # no verdict to judge again
         return bool(row["correct"])
-    return bool(row["significant"]) and not row["unexplained"] and explains(row.get("effects") or (),
-                                                                          withheld(row["case"]))
+    return pair_right(row["significant"], row["unexplained"], row.get("effects") or (), withheld(row["case"]))
 
 
 def exactly_withheld(row: dict) -> bool:
