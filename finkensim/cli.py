@@ -89,7 +89,6 @@ def cmd_run(args) -> int:
     _output_dir(prog, args.out, create=False)  # created once the flight ran: bad input leaves nothing behind
     from .scenario import simulate_flight  # the engine (numba): only once the input passed
 
-
     t0 = time.perf_counter()
     try:
         with compile_timer() as jit:

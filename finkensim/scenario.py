@@ -313,14 +313,15 @@ def fly_recorded_poses(log: FlightLog, cfg: Config | str | Path | Mapping[str, A
                           "(a fixed node is a copter of the log, tracked at its place)")
     seed = cfg.simulation.seed if seed is None else int(seed)
     t = np.asarray(log.t, dtype=np.float64)
-    readings = readings_along_poses(log.pose, RangingModel.from_config(rc), z=heights(log), seed=seed)
+    z = heights(log)
+    readings = readings_along_poses(log.pose, RangingModel.from_config(rc), z=z, seed=seed)
     if rc.latency > 0.0 and t.size > 1:
         dt = np.diff(t)
         if dt.max() - dt.min() > 1e-6 * dt.mean():
             raise ConfigError(f"ranging.latency = {rc.latency!r} s: expected 0 for a log whose samples are not evenly "
                               f"spaced (intervals {dt.min():g}..{dt.max():g} s); the latency counts samples")
         readings = readings[delayed_steps(np.arange(t.size), lag_steps(rc.latency, float(dt.mean())), t.size)]
-    extras = {} if heights(log) is None else {HEIGHTS: heights(log).copy()}
+    extras = {} if z is None else {HEIGHTS: z.copy()}
     meta = {"source": f"finkensim {__version__}: ranging flown along the poses of {log.meta.get('source', 'a log')}",
             "seed": seed, "config": json.loads(json.dumps(cfg.to_dict()))}
     if "copter_radius" in log.meta:
