@@ -259,3 +259,19 @@ def test_gap_left_of_a_report_against_itself_is_all_of_it(sonar_bias_report):
     report = sonar_bias_report[0]
     assert report.gap_before > 0
     assert gap_left(report, report) == pytest.approx(1.0, rel=1e-12)
+
+
+def test_the_header_lists_a_split_flight_once_and_says_what_an_unexplained_verdict_flies(sonar_bias_report):
+    """A log split into training and held-out parts is one flight; an *unexplained* verdict names no effect, so the
+    header says why the file still sets the selected effects (the learned correction is fitted on top of them)."""
+    from dataclasses import replace
+
+    from finkensim.gap.quantify.calibrate import calibrated_toml
+
+    report, _, _ = sonar_bias_report
+    split = replace(report, flights={"train": ["x.npz"], "heldout": ["x.npz"]})
+    header = [line for line in calibrated_toml(split).splitlines() if line.startswith("# flights")]
+    assert header == ["# flights: x.npz"]
+    assert "best partial explanation" not in calibrated_toml(report)
+    unexplained = replace(report, verdict={**report.verdict, "unexplained": True, "effects": [], "effect": None})
+    assert "the verdict names no effect" in calibrated_toml(unexplained)

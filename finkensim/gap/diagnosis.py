@@ -340,7 +340,8 @@ class Diagnosis:
         if effect.fit is not None:
             vals = effect.fit(self, effect, current, vals)
         else:
-            groups = [[p] for p in effect.params] if effect.separable else [list(effect.params)]
+            free = effect.free(self)
+            groups = [[p] for p in free] if effect.separable else [list(free)] if free else []
             for group in groups:
                 sens = [group[0].name] if (effect.separable and group[0].name in SENSORS) else sensors
                 if not any(s in self.tables for s in sens):

@@ -34,7 +34,7 @@ from ...sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERR
                                    SCHEDULE_SIMULTANEOUS)
 from ..model.params import ModelParams
 from . import fits
-from .objective import EffectFit
+from .objective import EffectFit, FitObjective
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,10 @@ class Effect:
         parameter group): ``fit(objective, effect, current, values) -> values``
         (:data:`~finkensim.gap.attribute.objective.EffectFit`; ``objective`` is the diagnosis as a fit sees it,
         :class:`~finkensim.gap.attribute.objective.FitObjective`); None = the generic fit.
+    informed : callable, optional
+        ``informed(objective) -> names``: the parameters the diagnosis's logs can inform (a per-node delay of a node
+        no reading involves cannot be); the others stay at their start values in the joint searches and get no
+        interval. None = every parameter.
     """
 
     name: str
@@ -111,6 +115,25 @@ class Effect:
     separable: bool = False  # parameters act on different sensors and are fitted one at a time
     calibrate: Callable[[dict, Config], dict] | None = None
     fit: EffectFit | None = None
+    informed: Callable[[FitObjective], tuple[str, ...]] | None = None
+
+    def free(self, objective: FitObjective) -> tuple[Param, ...]:
+        """The parameters the logs of ``objective`` can inform (:attr:`informed`; default all).
+
+        Parameters
+        ----------
+        objective : FitObjective
+            The diagnosis as a fit sees it.
+
+        Returns
+        -------
+        tuple of Param
+            The informed parameters, in the effect's order.
+        """
+        if self.informed is None:
+            return self.params
+        names = set(self.informed(objective))
+        return tuple(p for p in self.params if p.name in names)
 
     def start(self, base: ModelParams) -> dict:
         """Parameter values that reproduce the base model (or the effect's neutral values).

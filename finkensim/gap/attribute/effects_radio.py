@@ -24,7 +24,7 @@ from .effects import Effect, Param, register
 from .objective import FitObjective
 from ..model.params import ModelParams
 
-__all__ = ["MAX_DELAY_NODES", "fit_node_delay", "node_delays"]
+__all__ = ["MAX_DELAY_NODES", "delay_nodes", "fit_node_delay", "node_delays"]
 
 #: nodes whose delay ``ranging_node_delay`` fits (node k = copter k of the log; later nodes keep the configured one)
 MAX_DELAY_NODES = 10
@@ -45,6 +45,15 @@ def _plus_delays(configured, values: dict) -> list[float]:
     now = [float(d) for d in configured] + [0.0] * (n - len(configured))
     fitted = node_delays(values) + [0.0] * (n - MAX_DELAY_NODES)
     return [d + e for d, e in zip(now, fitted)]
+
+
+def delay_nodes(diag: FitObjective) -> tuple[str, ...]:
+    """The ``delay_k`` parameters the logs inform: node k is an end of some ranging reading (k < MAX_DELAY_NODES)."""
+    if "ranging" not in diag.tables:
+        return ()
+    tab = diag.tables["ranging"]
+    nodes = np.union1d(np.unique(tab.copter), np.unique(tab.channel))
+    return tuple(f"delay_{int(k)}" for k in nodes if 0 <= k < MAX_DELAY_NODES)
 
 
 def fit_node_delay(diag: FitObjective, effect: Effect, current: ModelParams, vals: dict) -> dict:
@@ -112,7 +121,7 @@ register(Effect(
         "two nodes' delays",
     initial=lambda b: {f"delay_{k}": 0.0 for k in range(MAX_DELAY_NODES)},
     calibrate=lambda v, cfg: {"ranging.node_delay": _plus_delays(cfg.ranging.node_delay, v)},
-    catch_all=True, fit=fit_node_delay))
+    catch_all=True, fit=fit_node_delay, informed=delay_nodes))
 register(Effect(
     "ranging_nlos_tail", ("ranging",),
     (Param("probability", 0.0, 0.5), Param("mean", 0.02, 1.5, unit="m")),

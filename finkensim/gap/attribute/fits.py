@@ -51,7 +51,7 @@ def joint_fit(diag: FitObjective, effects, values, maxfev: int = 40):
     fitted one on top of the other, each stops partway along that valley; fitted together they reach its floor."""
     chain = _Chain(effects)
     flat = {f"{e.name}.{k}": v for e, vals in zip(effects, values) for k, v in vals.items()}
-    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.params if not q.integer]
+    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.free(diag) if not q.integer]
     floors = {f"{e.name}.{k}": v for e in effects for k, v in stated_floor(diag.flights, e.name).items()}
     group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
     flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}

@@ -169,11 +169,16 @@ def calibrated_toml(report, correction_file: str | Path | None = None) -> str:
     doc = tomlkit.document()
     doc.add(tomlkit.comment("Calibrated by finkensim gap: the diagnosed config plus the selected effects at their "
                             "fitted parameters."))
-    doc.add(tomlkit.comment(f"flights: {', '.join(report.flights.get('train', []) + report.flights.get('heldout', []))}"))
+    # a log split into training and held-out parts is one flight
+    flights = dict.fromkeys(report.flights.get("train", []) + report.flights.get("heldout", []))
+    doc.add(tomlkit.comment(f"flights: {', '.join(flights)}"))
     state = "unexplained" if v.get("unexplained") else ("no significant gap" if not v.get("significant_gap")
                                                        else "explained")
     doc.add(tomlkit.comment(f"verdict: {state}; the selected effects together remove {100 * shrink:.0f} % of the "
                             "held-out gap"))
+    if v.get("unexplained") and steps:
+        doc.add(tomlkit.comment("the verdict names no effect: the effects set below are the diagnosis's best partial "
+                                "explanation, kept because the learned correction (if any) is fitted on top of them"))
     for s in steps:
         if not s.flown:
             doc.add(tomlkit.comment(f"NOT FLOWN: {s.name} ({_fmt_params(s.params)}) has no simulator counterpart yet"))

@@ -86,7 +86,8 @@ def _vertices(grid: np.ndarray, reps: np.ndarray, value: float, prm) -> np.ndarr
 def parameter_intervals(diag, added_params: dict, seed: int = 0) -> dict:
     """{effect: {parameter: {value, lo, hi, unit, values, probabilities}}} for the selected effects
     ``added_params`` (effect → fitted values, in the order they were added) of the diagnosis ``diag``
-    (:class:`~finkensim.gap.diagnosis.Diagnosis`); an effect or parameter without training readings is left out."""
+    (:class:`~finkensim.gap.diagnosis.Diagnosis`); an effect or parameter without training readings (or that the logs cannot inform, ``Effect.informed``) is
+    left out."""
     out = {}
     current = diag.base
     for name, values in added_params.items():
@@ -99,7 +100,7 @@ def parameter_intervals(diag, added_params: dict, seed: int = 0) -> dict:
             boot = BlockBootstrap(np.concatenate(ids), n_boot=N_BOOT, seed=seed)
             inverse = list(np.split(boot.inverse, np.cumsum([i.size for i in ids])[:-1]))
             per = {}
-            for prm in effect.params:
+            for prm in effect.free(diag):
                 if prm.name in values and np.isfinite(values[prm.name]):
                     own = [s for s in sensors if not effect.separable or prm.name not in SENSORS or s == prm.name]
                     keep = [i for i, s in enumerate(sensors) if s in own]
