@@ -279,6 +279,11 @@ def test_bulge_response_matches_the_exact_first_order_solution(T, S, tau, seed):
     got = rp.bulge_displacement(d, 0.2, 0.4, tau, t)
     np.testing.assert_allclose(got, naive.first_order_lag(0.2 * np.exp(-(d / 0.4) ** 2), t, tau), rtol=1e-12,
                                atol=1e-15)
+    # the kernel runs in place on the target (one array of a long log): the same numbers as into a new array
+    from finkensim.gap.model.bulge import first_order_lag
+    target, alpha = 0.2 * np.exp(-(d / 0.4) ** 2), -np.expm1(-np.diff(t) / tau)
+    apart = first_order_lag(target, alpha, np.empty_like(target))
+    np.testing.assert_array_equal(first_order_lag(target, alpha, target), apart)
 
 
 def test_bulge_response_to_a_step_is_one_minus_an_exponential():

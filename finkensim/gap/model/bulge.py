@@ -65,14 +65,15 @@ def bulge_displacement(plate_distance: np.ndarray, amplitude: float, reach: floa
     if not response > 0 or t is None or t.shape[0] != target.shape[0]:
         raise ValueError(f"bulge response = {response!r}: expected >= 0 s with the log's times (T,)")
     alpha = -np.expm1(-np.diff(t) / response)
-    return first_order_lag(np.ascontiguousarray(target, dtype=np.float64), np.ascontiguousarray(alpha))
+    target = np.ascontiguousarray(target, dtype=np.float64)
+    return first_order_lag(target, np.ascontiguousarray(alpha), target)  # in place: one (T, S_p) array of a long log
 
 
 @njit(cache=True)
-def first_order_lag(target, alpha):
-    """out (T, S): out[0] = target[0], out[k] = out[k−1] + alpha[k−1]·(target[k] − out[k−1]); alpha (T−1,)."""
+def first_order_lag(target, alpha, out):
+    """out (T, S): out[0] = target[0], out[k] = out[k−1] + alpha[k−1]·(target[k] − out[k−1]); alpha (T−1,).
+    ``out`` may be ``target`` itself (each target[k] is read before out[k] is written); returns ``out``."""
     T, S = target.shape
-    out = np.empty_like(target)
     for s in range(S):
         out[0, s] = target[0, s]
     for k in range(1, T):
