@@ -1,4 +1,4 @@
-"""Why an IMU latency leaves a gap after calibration: the simulator and the diagnosis delay it in different frames.
+"""Why an IMU latency left a gap after calibration: the simulator and the diagnosis delayed it in different frames.
 
 The simulator's ``imu.latency`` (and the ``latency`` validation case) show at step k the *body-frame* reading
 measured at step k − L, so a log's reading is R(−ψ[k−L])·a[k−L], a the world-frame acceleration and ψ the yaw.
@@ -6,7 +6,9 @@ The diagnosis turns each logged reading into the world frame with the log's yaw 
 latency model predicts the world-frame velocity change over each window at the delayed steps
 (``gap/model/predictive.py``, the IMU table's ``_ideal``): it expects a[k−L], it sees R(ψ[k] − ψ[k−L])·a[k−L].
 This script flies one noiseless flight of the ``latency`` case's scenario (random walk, the default conventions)
-and prints how large that rotation is against the IMU's own white noise over the diagnosis's 1 s windows.
+and prints how large that rotation is against the IMU's own white noise over the diagnosis's 1 s windows, and what
+is left of it after the turn the diagnosis now applies to each delayed window (``gap/model/imu_latency.py``: the
+window's mean turn and its first-order change across the window).
 
     nice -n 10 python examples/imu_latency_frame.py [latency_s]
 
@@ -18,6 +20,7 @@ import sys
 
 import numpy as np
 
+from finkensim.gap.model.imu_latency import imu_latency_turn, turn_windows
 from finkensim.gap.validation.cases import base_config
 from finkensim.gap.validation.conventions import DEFAULT_CONVENTIONS
 from finkensim.scenario import simulate_flight
@@ -50,6 +53,17 @@ def main(latency: float = 0.3, seconds: float = 30.0) -> None:
     print(f"yaw turned during the lag: median {np.median(turn):.3f} rad, 90th percentile {np.percentile(turn, 90):.3f} rad")
     print(f"1 s window velocity change, rms: {rms(window_sums(expected, h, dt)):.4f} m/s")
     print(f"its rotation error (seen - expected), rms: {rms(window_sums(seen - expected, h, dt)):.4f} m/s")
+    # the diagnosis's turn: window n of the delayed samples [n h, (n + 1) h) is stamped lag samples later
+    n = window_sums(expected, h, dt).shape[0]
+    ends = np.arange(2, n) * h + h - 1                 # windows whose first sample has two before it (for u_{i−1})
+    times = ends.astype(np.int64)
+    turn, shift = np.empty((ends.size, yaw.shape[1])), np.empty((ends.size, yaw.shape[1], 2))
+    imu_latency_turn(log.pose[..., :2], yaw, log.t, times + lag, times, h, 1, turn, shift)
+    windows = np.moveaxis(window_sums(expected, h, dt)[2:n], -1, 2)[..., None].copy()  # (n − 2, N, 2, 1)
+    windows = np.concatenate([windows, np.zeros_like(windows[:, :, :1])], axis=2)       # + a Δψ channel
+    turn_windows(windows, turn, shift)
+    left = window_sums(seen, h, dt)[2:n] - np.moveaxis(windows[:, :, :2, 0], 2, -1)
+    print(f"after the diagnosis's turn (mean and first-order change), rms: {rms(left):.5f} m/s")
     print(f"accelerometer white noise over a 1 s window, sd: {cfg.imu.acc_noise_density:.4f} m/s")
 
 

@@ -24,6 +24,7 @@ from ...sensors.imu_correction import corrected_window_draws
 from ...sensors.ranging_radio import antenna_key, dropout_probabilities, radio_draws, tag_distance_draws
 from .params import ModelParams, gaussian_draws, lag_steps, sonar_echo_errors, sonar_reading_draws
 from .cache import CACHE_BYTES, LRU, nbytes_of
+from .imu_latency import imu_latency_turn, turn_windows
 
 # --------------------------------------------------------------------------------------- tables
 
@@ -437,16 +438,26 @@ class ImuTable(Table):
 
     def _ideal(self, p: ModelParams, seed: int, M: int, fl, split: RowSplit):
         """Window integrals (len(split.u), N, 3, G) at the sample positions split.u of one flight, for the copters
-        of the split's readings (the others read NaN)."""
+        of the split's readings (the others read NaN).
+
+        Under an IMU latency of L ≠ 0 samples the windows end L samples earlier, and their velocity changes are
+        turned by the yaw the copter turned during the lag (:mod:`~finkensim.gap.model.imu_latency`: the window's
+        mean turn and its first-order change across the window): the log rotates each delayed body-frame reading
+        with the yaw at its stamp, not at its measurement."""
         sx, sy, G = pose_sigmas(p, fl, M)
         h, b = self.window, self.baseline
-        key = ("imu", split.key, round(sx, 9), round(sy, 9), lag_steps(p.latency_imu, fl.dt), G, h, b)
+        lag = lag_steps(p.latency_imu, fl.dt)
+        key = ("imu", split.key, round(sx, 9), round(sy, 9), lag, G, h, b)
         hit = self.cache.get(key)
         if hit is None:
-            times = np.clip(fl.samples[split.u] - lag_steps(p.latency_imu, fl.dt), h + b, fl.t.size - 1)
+            times = np.clip(fl.samples[split.u] - lag, h + b, fl.t.size - 1)
             need = self.needed(split, (times.size, fl.n_copters))
             out = np.empty((times.size, fl.n_copters, 3, G))
             rp.imu_window_draws(fl.pos, fl.yaw_unwrapped, fl.t, times, h, b, fl.noise(sx, sy, seed), G, need, out)
+            if lag != 0:  # lag 0: no turn, the windows stay bit for bit
+                turn, shift = np.empty((times.size, fl.n_copters)), np.empty((times.size, fl.n_copters, 2))
+                imu_latency_turn(fl.pos, fl.yaw_unwrapped, fl.t, fl.samples[split.u], times, h, b, turn, shift)
+                turn_windows(out, turn, shift)
             hit = self.cache.put(key, (out,))
         return hit
 
