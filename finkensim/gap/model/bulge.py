@@ -80,3 +80,17 @@ def first_order_lag(target, alpha):
         for s in range(S):
             out[k, s] = out[k - 1, s] + a * (target[k, s] - out[k - 1, s])
     return out
+
+
+#: the parameters of the ``wall_bulge`` effect's hinge version (:mod:`finkensim.gap.attribute.hinge`), named as the
+#: config keys ``walls.*`` that fly them: deg, m, m
+HINGE_KEYS = ("max_amplitude_deg", "threshold", "hinge_height")
+
+
+def as_hinge_walls(base, values: dict):
+    """``base`` (a :class:`~finkensim.gap.model.params.ModelParams`) with its walls replaced by the simulator's hinge
+    walls at ``values`` (:data:`HINGE_KEYS`): the plates follow the hinge driven by the logged copters (gain 1), no
+    bulge on top. The ``wall_bulge`` effect's hinge version: a plate angle under a PID toward
+    ``max_amplitude · f(x)`` within ``threshold``, against gravity, moving the surface by ``lever · sin θ``."""
+    return base.with_(wall_gain=1.0, bulge_amplitude=0.0, bulge_hinge=0.0,
+                      walls_hinge=tuple(float(values[k]) for k in HINGE_KEYS))
