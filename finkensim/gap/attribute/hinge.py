@@ -33,8 +33,9 @@ HINGE_MAXFEV = 30
 
 
 def _hinge_informed(objective) -> tuple[str, ...]:
-    """A log with sonar readings informs all three: how far readings shorten (amplitude and lever), how close a
-    copter must come (threshold), and the lever's cap and sine (hinge height); none without sonar readings."""
+    """A log with sonar readings informs how far readings shorten (lever · sin(1.1 · max amplitude): the maximum
+    amplitude on the configured lever, the hinge height where that lever is too short, :func:`fit_hinge`) and how
+    close a copter must come (threshold); none without sonar readings."""
     return HINGE_KEYS if "ultrasonic" in objective.tables else ()
 
 
@@ -44,31 +45,31 @@ def _altitude(objective) -> float:
 
 
 def fit_hinge(objective, effect, current, vals):
-    """From the fitted bulge ``vals`` (its amplitude and reach): a few starting points that give the same largest
-    displacement (lever · sin(1.1 · max amplitude) = the bulge's amplitude; f(1) = 1.1) with the configured hinge
-    and with the lever the configured angle needs, the threshold the configured one or the bulge's reach; then
-    Nelder–Mead over the three from the best (:data:`HINGE_MAXFEV` evaluations)."""
+    """From the fitted bulge ``vals`` (its amplitude and reach): the hinge height the configured one (the walls'
+    geometry, like the arena's size) unless its lever (hinge height − the flights' altitude) is too short for the
+    bulge's largest displacement (lever · sin(1.1 · 80°) < amplitude; f(1) = 1.1), then the one whose lever gives
+    that displacement at the configured maximum amplitude; a log informs lever · sin(1.1 · max amplitude), not each
+    (a fit of both drifts along that valley). Then the maximum amplitude that gives the displacement on that lever
+    and the threshold the configured one or the bulge's reach, the better of those starts, and Nelder–Mead over
+    maximum amplitude and threshold (:data:`HINGE_MAXFEV` evaluations)."""
     sensors = [s for s in effect.sensors if s in objective.tables]
     amp_p, thr_p, height_p = effect.params
     f = lambda v: objective.objective(effect, current, sensors, v)  # noqa: E731
     alt = _altitude(objective)
     cfg_amp, cfg_thr, cfg_height = (current.walls_hinge or (30.0, 1.0, 1.0))
-    bulge = max(0.02, float(vals.get("amplitude", 0.1)))
-    reach = float(vals.get("reach", cfg_thr))
     clip = lambda p, x: float(min(p.hi, max(p.lo, x)))  # noqa: E731
-    cands = []
-    for lever in (max(0.0, cfg_height - alt), bulge / math.sin(1.1 * math.radians(max(cfg_amp, 5.0)))):
-        if lever <= bulge / 0.95:
-            continue  # this lever cannot move the surface that far
-        amp = math.degrees(math.asin(bulge / lever)) / 1.1
-        for thr in dict.fromkeys((cfg_thr, reach)):
-            cands.append({"max_amplitude_deg": clip(amp_p, amp), "threshold": clip(thr_p, thr),
-                          "hinge_height": clip(height_p, alt + lever)})
-    if not cands:
-        cands = [dict(zip(HINGE_KEYS, (cfg_amp, cfg_thr, cfg_height)))]
+    bulge = max(0.0, float(vals.get("amplitude", 0.0)))
+    lever = max(0.0, cfg_height - alt)
+    if lever * math.sin(1.1 * math.radians(amp_p.hi)) < bulge:
+        lever = bulge / math.sin(1.1 * math.radians(min(max(cfg_amp, 5.0), amp_p.hi)))
+    height = clip(height_p, alt + lever)
+    lever = max(0.0, height - alt)
+    amp = math.degrees(math.asin(min(1.0, bulge / lever))) / 1.1 if lever > 0 and bulge > 0 else cfg_amp
+    cands = [{"max_amplitude_deg": clip(amp_p, amp), "threshold": clip(thr_p, thr), "hinge_height": height}
+             for thr in dict.fromkeys((cfg_thr, float(vals.get("reach", cfg_thr))))]
     scores = [f(c) for c in cands]
     i = int(np.argmin(scores))
-    group = list(effect.params)
+    group = [amp_p, thr_p]
     return nelder_mead(f, cands[i], group, [cands[i][q.name] for q in group], scores[i], maxfev=HINGE_MAXFEV)
 
 
