@@ -33,7 +33,7 @@ from ...sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire
                                      sonar_pose, sonar_poses_env, sonar_spread, store_ideal)
 from ...sensors.ranging_radio import tag_distance_draws
 from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
-from .bulge import bulge_displacement
+from .bulge import bulge_displacement, hinge_replay
 from .params import hinge_key
 from .inputs import GapInputError
 from ...sensors.tracking import PoseNoise, draw_poses_from, pose_draw, pose_normal_table
@@ -82,28 +82,14 @@ class Flight:
         return self.poses_with_bulge(0.0, 1.0)
 
     def hinged(self, walls_hinge: tuple = ()) -> tuple[np.ndarray, WallGeometry]:
-        """(plate angles (T, S_p) rad, the walls as the sonar kernels see them) of the hinge walls ``walls_hinge`` =
-        (max_amplitude_deg, threshold m, hinge_height m) driven by the logged copters
-        (:func:`~finkensim.world.walls_from_positions`, the other hinge parameters the prepared ones; the lever is
-        hinge_height − the log's altitude, ≥ 0). () or the prepared walls' own key: :attr:`theta_unit` and :attr:`walls`.
-        The last few are kept (a fit asks for each at every evaluation)."""
+        """(plate angles (T, S_p) rad, walls) of the hinge walls ``walls_hinge`` driven by the logged copters
+        (:func:`~finkensim.gap.model.bulge.hinge_replay`, the last 8 kept); () or the prepared key: the prepared."""
         key = tuple(float(v) for v in walls_hinge)
         if not key or key == tuple(self.hinge):
             return self.theta_unit, self.walls
-        hit = self._hinged.get(key)
-        if hit is None:
-            amp, threshold, height = key
-            hp = self.arena.hinge._replace(bending=True, max_amplitude=float(np.deg2rad(amp)), threshold=threshold)
-            lever = max(0.0, height - self.arena.altitude)
-            theta = np.empty_like(self.theta_unit)
-            dist = np.empty_like(self.plate_distance)
-            walls_from_positions(self.pos, self.t, self.arena.seg_a, self.arena.seg_b, self.radius, hp, lever, theta,
-                                 dist)
-            geometry = wall_geometry(self.arena)._replace(lever=float(lever))
-            if len(self._hinged) >= 8:
-                self._hinged.pop(next(iter(self._hinged)))
-            hit = self._hinged[key] = (theta, geometry)
-        return hit
+        if key not in self._hinged:
+            self._hinged = {key: hinge_replay(self.arena, self.pos, self.t, self.radius, key), **dict(list(self._hinged.items())[:7])}
+        return self._hinged[key]
 
     def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0,
                          shape: float = 2.0, hinge: float = 0.0,
@@ -116,8 +102,7 @@ class Flight:
         ``times`` (K,) int64 log indices: only the displacement at these samples is wanted (the others are zero,
         never read), so a bulge that follows at once (``response`` 0, each sample's own) is computed at them only
         — the same numbers there, without (T, S_p) arrays of a long log for each evaluation of a fit. A bulge with a
-        response time needs every earlier sample and is computed at all of them. ``walls_hinge``: the plate angles
-        of those hinge walls (:meth:`hinged`; () the prepared ones)."""
+        response time needs every earlier sample and is computed at all of them. ``walls_hinge``: :meth:`hinged`."""
         theta = self.hinged(walls_hinge)[0]
         if times is None or response != 0.0 or amplitude == 0.0:
             return ReplayPoses(self.pos, self.yaw, theta,
