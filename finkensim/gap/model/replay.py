@@ -103,7 +103,7 @@ class Flight:
         never read), so a bulge that follows at once (``response`` 0, each sample's own) is computed at them only
         — the same numbers there, without (T, S_p) arrays of a long log for each evaluation of a fit. A bulge with a
         response time needs every earlier sample and is computed at all of them. ``walls_hinge``: :meth:`hinged`."""
-        theta = self.hinged(walls_hinge)[0]
+        theta = self.hinged(walls_hinge)[0] if walls_hinge else self.theta_unit
         if times is None or response != 0.0 or amplitude == 0.0:
             return ReplayPoses(self.pos, self.yaw, theta,
                                bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape,
