@@ -7,6 +7,7 @@ import time
 
 from ..config import Config
 from .attribute.joint import join_second, pair_lead, pair_when_unexplained, refit_jointly, swap_second
+from .attribute.hinge import refit_as_hinge
 from .attribute.selection import Selection, candidates, first_round, keep_earned, select_greedy
 from .attribute.targeted import apply_targeted
 from .detect.significance import detect_gap
@@ -95,6 +96,7 @@ def run_diagnosis(diag: Diagnosis, effect_names=None, max_added: int = 4, refit_
     for joint_step in (refit_jointly, swap_second, pair_when_unexplained, join_second, pair_lead):
         joint_step(sel)
     keep_earned(sel)  # parsimony: a catch-all stays only against a flexible refit of its structured neighbour
+    refit_as_hinge(sel)  # the selected wall bulge as the simulator's hinge walls, kept when significantly better
     out = quantify(sel)  # quantify: waterfall, shrink, verdict
     correct(sel, out, with_correction)
     return assemble_report(sel, out, seconds=time.perf_counter() - t0)

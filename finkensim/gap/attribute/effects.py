@@ -32,6 +32,7 @@ from ...config import Config
 
 from ...sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
                                    SCHEDULE_SIMULTANEOUS)
+from ..model.bulge import HINGE_KEYS, as_hinge_walls
 from ..model.params import ModelParams
 from . import fits
 from .objective import EffectFit, FitObjective
@@ -257,11 +258,17 @@ def _beam(base: ModelParams, v: dict) -> ModelParams:
     return base.with_(sonar=base.sonar.with_beam(math.radians(v["half_angle_deg"]), rays))
 
 
+def _cal_hinge_walls(v: dict) -> dict:
+    """The ``wall_bulge`` effect's hinge version (:mod:`.hinge`) flown: the simulator's hinge walls at the fitted
+    keys, no bulge on top."""
+    return {"walls.bending": True, "walls.model": "hinge", **{f"walls.{k}": float(v[k]) for k in HINGE_KEYS}}
+
+
 register(Effect(
     "wall_bulge", ("ultrasonic",), (Param("amplitude", -0.1, 0.5, unit="m"), Param("reach", 0.05, 1.5, unit="m"),
                                     Param("response", 0.0, 3.0, unit="s"), Param("shape", 1.0, 12.0)),
-    lambda b, v: b.with_(bulge_amplitude=v["amplitude"], bulge_reach=v["reach"], bulge_response=v["response"],
-                         bulge_shape=v["shape"]),
+    lambda b, v: as_hinge_walls(b, v) if HINGE_KEYS[0] in v else b.with_(
+        bulge_amplitude=v["amplitude"], bulge_reach=v["reach"], bulge_response=v["response"], bulge_shape=v["shape"]),
     fit=fits.fit_bulge,
     doc="curtain plates bend toward nearby copters (Bernoulli) beyond the configured wall model: each plate "
         "moves toward the arena by amplitude·exp(−(d/reach)^shape), d its distance to the nearest copter body "
@@ -271,7 +278,7 @@ register(Effect(
     initial=lambda b: {"amplitude": b.bulge_amplitude, "reach": b.bulge_reach, "response": b.bulge_response,
                        "shape": b.bulge_shape},
     expected_features=("wall_distance", "hit_type", "hit_to_copter", "true_range", "incidence"),
-    calibrate=lambda v, cfg: {
+    calibrate=lambda v, cfg: _cal_hinge_walls(v) if HINGE_KEYS[0] in v else {
         "walls.bending": True, "walls.bulge_amplitude": float(v["amplitude"]), "walls.bulge_reach": float(v["reach"]),
         "walls.bulge_response": float(v["response"]), "walls.bulge_shape": float(v["shape"]),
         # the hinge-law weight of the flexible refit (gap/attribute/parsimony.py); the catalogue's fit keeps the config's

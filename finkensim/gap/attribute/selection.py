@@ -65,7 +65,8 @@ class Selection:
     and gaps (sensor → (n,)) and its mean held-out score; ``steps`` are (label, effect, rows_score, rows_gap,
     values) tuples; ``pool`` the candidates left, ``ambiguous`` the first pick's near ties, ``runners_up`` the
     second pick's alternatives, ``lead`` the first round's best, ``earned`` the parsimony step's finding,
-    ``hopeless`` the first round's candidates that the later rounds do not refit (:func:`hopeless`).
+    ``hopeless`` the first round's candidates that the later rounds do not refit (:func:`hopeless`), ``refits`` the
+    ``verdict.tried`` entries of the structured refits (:func:`~finkensim.gap.attribute.hinge.refit_as_hinge`).
     """
 
     diag: object
@@ -84,6 +85,7 @@ class Selection:
     lead: object = None
     earned: object = None
     hopeless: frozenset = frozenset()
+    refits: list = field(default_factory=list)
 
     @classmethod
     def start(cls, diag, found, first) -> "Selection":

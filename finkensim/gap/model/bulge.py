@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...arena import bulge_law
+from ...arena import bulge_law, wall_geometry
+from ...world import walls_from_positions
 
 
 def bulge_target(plate_distance: np.ndarray, amplitude: float, reach: float, shape: float = 2.0,
@@ -81,3 +82,31 @@ def first_order_lag(target, alpha, out):
         for s in range(S):
             out[k, s] = out[k - 1, s] + a * (target[k, s] - out[k - 1, s])
     return out
+
+
+#: the parameters of the ``wall_bulge`` effect's hinge version (:mod:`finkensim.gap.attribute.hinge`), named as the
+#: config keys ``walls.*`` that fly them: deg, m, m
+HINGE_KEYS = ("max_amplitude_deg", "threshold", "hinge_height")
+
+
+def as_hinge_walls(base, values: dict):
+    """``base`` (a :class:`~finkensim.gap.model.params.ModelParams`) with its walls replaced by the simulator's hinge
+    walls at ``values`` (:data:`HINGE_KEYS`): the plates follow the hinge driven by the logged copters (gain 1), no
+    bulge on top. The ``wall_bulge`` effect's hinge version: a plate angle under a PID toward
+    ``max_amplitude · f(x)`` within ``threshold``, against gravity, moving the surface by ``lever · sin θ``."""
+    return base.with_(wall_gain=1.0, bulge_amplitude=0.0, bulge_hinge=0.0,
+                      walls_hinge=tuple(float(values[k]) for k in HINGE_KEYS))
+
+
+def hinge_replay(arena, pos, t, radius, walls_hinge):
+    """(plate angles (T, S) rad, :class:`~finkensim.arena.WallGeometry`) of ``arena``'s walls as the simulator's
+    hinge with ``walls_hinge`` = (max_amplitude_deg, threshold m, hinge_height m), the other hinge parameters
+    ``arena``'s, driven by the copters at pos (T, N, 2) m, times t (T,) s, body radius m
+    (:func:`~finkensim.world.walls_from_positions`); the lever is hinge_height − ``arena.altitude`` (≥ 0)."""
+    amp, threshold, height = (float(v) for v in walls_hinge)
+    hp = arena.hinge._replace(bending=True, max_amplitude=float(np.deg2rad(amp)), threshold=threshold)
+    lever = max(0.0, height - arena.altitude)
+    theta = np.empty((t.shape[0], arena.seg_a.shape[0]))
+    dist = np.empty_like(theta)
+    walls_from_positions(pos, t, arena.seg_a, arena.seg_b, radius, hp, lever, theta, dist)
+    return theta, wall_geometry(arena)._replace(lever=lever)

@@ -31,7 +31,7 @@ from ...kernels.raycast import HIT_NONE
 from ...sensors.sonar_kernels import echo_error, measured_reading
 from ...sensors.sonar_model import ERROR_NONE, SonarModel, rayleigh_std, sonar_scalars
 
-__all__ = ["ModelParams", "SENSORS", "SENSOR_FIELDS", "SHARED_FIELDS", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
+__all__ = ["ModelParams", "SENSORS", "SENSOR_FIELDS", "SHARED_FIELDS", "hinge_key", "sonar_echo_errors", "sonar_reading_draws", "gaussian_draws", "lag_steps"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,7 +52,11 @@ class ModelParams:
     (``acc_bias_x``, ``acc_bias_y``, ``gyro_bias``: the simulator's config keys ``imu.acc_bias``, ``imu.gyro_bias``).
     bulge_hinge in [0, 1]: the weight of the walls' own polynomial law in the bulge's target
     (:func:`~finkensim.arena.bulge_law`; 0 = the catalogue's law; the config's ``walls.bulge_hinge``, fitted by the
-    flexible refit of :mod:`finkensim.gap.attribute.parsimony`).
+    flexible refit of :mod:`finkensim.gap.attribute.parsimony`). walls_hinge: the hinge walls the replay drives with
+    the logged copters, (max_amplitude_deg deg, threshold m, hinge_height m) as the config keys ``walls.*`` of the same
+    names (the simulator's hinge, :func:`~finkensim.world.walls_from_positions`; the other hinge keys are the
+    config's); () = the walls the flights were prepared with (the diagnosed config's). The plates move by it only
+    with ``wall_gain`` > 0 (the ``wall_bulge`` effect's hinge version sets both, :mod:`finkensim.gap.attribute.hinge`).
     """
 
     sonar: SonarModel
@@ -70,6 +74,7 @@ class ModelParams:
     latency_ranging: float = 0.0
     latency_imu: float = 0.0
     bulge_hinge: float = 0.0
+    walls_hinge: tuple = ()
 
     @classmethod
     def from_config(cls, cfg: Config) -> "ModelParams":
@@ -78,6 +83,7 @@ class ModelParams:
                    imu=ImuModel.from_config(cfg.imu, cfg.simulation.dt),
                    wall_gain=1.0 if cfg.walls.bending and "hinge" in cfg.walls.model else 0.0,
                    beam_rays=int(cfg.sonar.beam_rays), **_bulge_from_config(cfg.walls),
+                   walls_hinge=hinge_key(cfg.walls),
                    latency_sonar=cfg.sonar.latency, latency_ranging=cfg.ranging.latency, latency_imu=cfg.imu.latency,
                    **_tracking_from_config(cfg.gap))
 
@@ -121,6 +127,12 @@ def _tracking_from_config(gap) -> dict:
             "sigma_yaw": gap.tracking_sigma_yaw if gap.tracking_sigma_yaw >= 0 else None}
 
 
+def hinge_key(walls) -> tuple:
+    """(max_amplitude_deg, threshold m, hinge_height m) of a :class:`~finkensim.config.WallConfig`: the hinge walls
+    of :attr:`ModelParams.walls_hinge`."""
+    return (float(walls.max_amplitude_deg), float(walls.threshold), float(walls.hinge_height))
+
+
 def _bulge_from_config(walls) -> dict:
     """The ``bulge_*`` fields of the curtain bulge the simulator flies (``walls.model``; amplitude 0 without)."""
     on = walls.bending and "bulge" in walls.model
@@ -135,7 +147,7 @@ SENSORS = ("ultrasonic", "ranging", "imu")
 SHARED_FIELDS = ("sigma_xy", "sigma_yaw")
 SENSOR_FIELDS = {
     "ultrasonic": ("sonar", "wall_gain", "bulge_amplitude", "bulge_reach", "bulge_response", "bulge_shape", "beam_rays", "latency_sonar",
-                   "bulge_hinge"),
+                   "bulge_hinge", "walls_hinge"),
     "ranging": ("ranging", "latency_ranging"),
     "imu": ("imu", "latency_imu"),
 }

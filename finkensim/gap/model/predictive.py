@@ -212,7 +212,7 @@ class SonarTable(Table):
             G = min(M, GEOMETRY_DRAWS)  # the firing schedule is random: exact poses still need several draws
         key = ("sonar", split.key, round(sx, 9), round(sy, 9), round(p.wall_gain, 6),
                round(p.bulge_amplitude, 9), round(p.bulge_reach, 9), round(p.bulge_response, 9), round(p.bulge_shape, 9),
-               round(p.bulge_hinge, 9), sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
+               round(p.bulge_hinge, 9), tuple(round(float(v), 9) for v in p.walls_hinge), sp.ray_angles.tobytes(), lag_steps(p.latency_sonar, fl.dt), sp.schedule, sp.n_slots, sp.cos_half_angle, G,
                sp.max_range, bool(sp.crosstalk & CROSSTALK_GEOMETRIC), sp.update_hz, sp.update_phase)
         cache = self.evals if self.training not in (None, split.key[1:3]) else self.cache
         hit = cache.get(key)
@@ -230,8 +230,8 @@ class SonarTable(Table):
             z = self.normals.put(zkey, np.empty((K, G, N, 3)))
             rp.pose_normal_table(times, N, G, seed, fl.index, z)
         rp.sonar_draws(fl.poses_with_bulge(p.bulge_amplitude, p.bulge_reach, p.bulge_response, p.bulge_shape,
-                                           p.bulge_hinge, times=times),
-                       fl.walls, fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt,
+                                           p.bulge_hinge, times=times, walls_hinge=p.walls_hinge),
+                       fl.hinged(p.walls_hinge)[1], fl.sonar_model(sp), p.wall_gain, times, fl.noise(sx, sy, seed), G, need, dist, kind, xt,
                        z=z)
         return cache.put(key, (dist, kind, xt))
 

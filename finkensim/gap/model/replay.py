@@ -33,7 +33,8 @@ from ...sensors.sonar_kernels import (crosstalk_path, displaced_plates_env, fire
                                      sonar_pose, sonar_poses_env, sonar_spread, store_ideal)
 from ...sensors.ranging_radio import tag_distance_draws
 from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, SonarModel, WallGeometry, sonar_scalars, wall_geometry
-from .bulge import bulge_displacement
+from .bulge import bulge_displacement, hinge_replay
+from .params import hinge_key
 from .inputs import GapInputError
 from ...sensors.tracking import PoseNoise, draw_poses_from, pose_draw, pose_normal_table
 
@@ -68,6 +69,8 @@ class Flight:
     sonar_offset: float = 0.0
     extras: dict = field(default_factory=dict)
     z: np.ndarray | None = None
+    hinge: tuple = ()
+    _hinged: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_copters(self) -> int:
@@ -78,9 +81,19 @@ class Flight:
         """The flight as the sonar kernels see it: logged poses and replayed plate angles, no extra bulge."""
         return self.poses_with_bulge(0.0, 1.0)
 
+    def hinged(self, walls_hinge: tuple = ()) -> tuple[np.ndarray, WallGeometry]:
+        """(plate angles (T, S_p) rad, walls) of the hinge walls ``walls_hinge`` driven by the logged copters
+        (:func:`~finkensim.gap.model.bulge.hinge_replay`, the last 8 kept); () or the prepared key: the prepared."""
+        key = tuple(float(v) for v in walls_hinge)
+        if not key or key == tuple(self.hinge):
+            return self.theta_unit, self.walls
+        if key not in self._hinged:
+            self._hinged = {key: hinge_replay(self.arena, self.pos, self.t, self.radius, key), **dict(list(self._hinged.items())[:7])}
+        return self._hinged[key]
+
     def poses_with_bulge(self, amplitude: float, reach: float, response: float = 0.0,
                          shape: float = 2.0, hinge: float = 0.0,
-                         times: np.ndarray | None = None) -> "ReplayPoses":
+                         times: np.ndarray | None = None, walls_hinge: tuple = ()) -> "ReplayPoses":
         """:attr:`poses` with every plate displaced toward the arena by ``amplitude · exp(−(d/reach)^shape)`` m,
         d its distance to the nearest copter body, followed with time constant ``response`` s (the
         ``wall_bulge`` effect; amplitude m, reach m > 0, shape > 0; hinge: the weight of the walls' own law,
@@ -89,14 +102,15 @@ class Flight:
         ``times`` (K,) int64 log indices: only the displacement at these samples is wanted (the others are zero,
         never read), so a bulge that follows at once (``response`` 0, each sample's own) is computed at them only
         — the same numbers there, without (T, S_p) arrays of a long log for each evaluation of a fit. A bulge with a
-        response time needs every earlier sample and is computed at all of them."""
+        response time needs every earlier sample and is computed at all of them. ``walls_hinge``: :meth:`hinged`."""
+        theta = self.hinged(walls_hinge)[0] if walls_hinge else self.theta_unit
         if times is None or response != 0.0 or amplitude == 0.0:
-            return ReplayPoses(self.pos, self.yaw, self.theta_unit,
+            return ReplayPoses(self.pos, self.yaw, theta,
                                bulge_displacement(self.plate_distance, amplitude, reach, response, self.t, shape,
                                                   hinge))
         bulge = np.zeros_like(self.plate_distance)  # untouched pages of zeros cost no memory
         bulge[times] = bulge_displacement(self.plate_distance[times], amplitude, reach, 0.0, None, shape, hinge)
-        return ReplayPoses(self.pos, self.yaw, self.theta_unit, bulge)
+        return ReplayPoses(self.pos, self.yaw, theta, bulge)
 
     @property
     def walls(self) -> WallGeometry:
@@ -173,7 +187,7 @@ def prepare_flights(logs: list[FlightLog], names: list[str], cfg: Config) -> lis
         z = np.zeros(pos.shape[:2]) if z is None else np.ascontiguousarray(z)
         f = Flight(name=name, index=i, log=log, t=t, dt=dt, pos=pos, yaw=yaw,
                    yaw_unwrapped=np.unwrap(yaw, axis=0), arena=arena, radius=radius, sigma_xy=sx, sigma_yaw=sy,
-                   theta_unit=theta, plate_distance=plate_distance, samples=samples, z=z)
+                   theta_unit=theta, plate_distance=plate_distance, samples=samples, z=z, hinge=hinge_key(cfg_f.walls) if arena.hinge.bending else ())
         if log.ultrasonic is not None:
             f.sonar_yaw = np.ascontiguousarray(log.ultrasonic_yaw, dtype=float)
             f.sonar_offset = float(log.ultrasonic_offset)

@@ -111,8 +111,8 @@ def quantify(sel: Selection) -> Outcome:
     elif found.significant:
         verdict.update(effect=names_added[0], effects=names_added, ambiguous=sel.ambiguous,
                        shrink_heldout=total_shrink)
-    if sel.earned is not None:
-        verdict["tried"] = sel.earned.tried
+    if sel.earned is not None or sel.refits:
+        verdict["tried"] = (sel.earned.tried if sel.earned is not None else []) + sel.refits
     return Outcome(meter, shrink_sensors, waterfall, effects, bounds, total_shrink, verdict, remaining)
 
 

@@ -271,6 +271,11 @@ def _how_far_section(report: GapReport, figs: dict) -> list[str]:
         lines.append(f"- {w['step']}: held-out gap {_fmt(w['gap_heldout'])} (its calibration part "
                      f"{_fmt(w.get('calibration_gap'))})")
     for t in report["verdict"].get("tried", ()):
+        if t.get("refit"):  # a structured effect refitted as another model (gap/attribute/hinge.py)
+            lines.append(f"- tried {t['effect']} as {t['refit']} beside {t['beside']}: held-out improvement "
+                         f"{_fmt(t['improvement'], 4)}, p = {t['p']:.3g} (needs < {t['threshold']:.3g}): "
+                         f"{'kept' if t['kept'] else 'not kept'}")
+            continue
         lines.append(f"- tried {t['effect']} beside {t['beside']}: held-out improvement {_fmt(t['improvement'], 4)} "
                      f"(needs {_fmt(t['bar'], 4)}), p = {t['p']:.3g} (needs < {t['threshold']:.3g}): "
                      f"{'kept' if t['kept'] else 'dropped'}"
