@@ -282,7 +282,6 @@ def fit_update_rate(diag: FitObjective, effect, current, vals):
     return cands[int(np.argmin(scores))]
 
 
-
 #: cross-talk cone half-angles (deg) :func:`fit_crosstalk_cone` scores before its local refinement
 CONE_GRID = (15.0, 25.0, 35.0, 40.0, 45.0, 50.0, 55.0, 65.0)
 #: hearing probabilities scored at each cone of :data:`CONE_GRID`
