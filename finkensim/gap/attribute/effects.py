@@ -222,8 +222,27 @@ def _cal_crosstalk(kind: str, probability_key: str):
             out["sonar.crosstalk"] = kind if now == "off" else "geometric+constant"
             if kind == "geometric":
                 out["sonar.schedule"] = "simultaneous"
+        if kind == "geometric" and "cone_half_angle_deg" in v:
+            out.update(_cal_cone(float(v["cone_half_angle_deg"]), cfg))
         return out
     return cal
+
+
+def _same_cone(deg: float, half_angle: float) -> bool:
+    """Whether a cone of ``deg`` degrees is the sonar record's ``half_angle`` (rad), to rounding."""
+    return abs(math.radians(deg) - half_angle) <= 1e-12
+
+
+def _cal_cone(deg: float, cfg: Config) -> dict:
+    """The geometric cross-talk cone the simulator flies: ``sonar.cone_half_angle_deg`` (the config's own value when
+    the fit kept it). A cone beam that follows that key (``sonar.beam_half_angle_deg = -1``) is pinned at the angle it
+    flew: the beam's width is the ``beam_width`` effect's, not the cross-talk cone's."""
+    if _same_cone(deg, math.radians(cfg.sonar.cone_half_angle_deg)):
+        return {"sonar.cone_half_angle_deg": cfg.sonar.cone_half_angle_deg}
+    out = {"sonar.cone_half_angle_deg": deg}
+    if cfg.sonar.beam == "cone" and cfg.sonar.beam_half_angle_deg < 0.0:
+        out["sonar.beam_half_angle_deg"] = cfg.sonar.cone_half_angle_deg
+    return out
 
 
 def _cal_beam(v: dict, cfg: Config) -> dict:
@@ -234,9 +253,15 @@ def _cal_beam(v: dict, cfg: Config) -> dict:
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
     # without geometric cross-talk in the base model the schedule is unknown: every copter fires at once
     geometric = bool(base.sonar.crosstalk & CROSSTALK_GEOMETRIC)
+    cone = {}
+    deg = v.get("cone_half_angle_deg")
+    if deg is not None and not _same_cone(float(deg), base.sonar.half_angle):
+        # the cross-talk cone only (cos_half_angle: sonar_kernels.crosstalk_path); the beam's rays stay as they are
+        h = math.radians(float(deg))
+        cone = {"half_angle": h, "cos_half_angle": math.cos(h)}
     return base.with_sonar(crosstalk=base.sonar.crosstalk | CROSSTALK_GEOMETRIC,
                            crosstalk_hear_probability=v["probability"],
-                           schedule=base.sonar.schedule if geometric else SCHEDULE_SIMULTANEOUS)
+                           schedule=base.sonar.schedule if geometric else SCHEDULE_SIMULTANEOUS, **cone)
 
 
 def _crosstalk_constant(base: ModelParams, v: dict) -> ModelParams:
@@ -286,10 +311,14 @@ register(Effect(
         # the hinge stays as the config flew it (rigid walls: the bulge alone)
         "walls.model": "hinge+bulge" if cfg.walls.bending and "hinge" in cfg.walls.model else "bulge"}))
 register(Effect(
-    "crosstalk_geometric", ("ultrasonic",), (Param("probability", 0.0, 1.0),),
+    "crosstalk_geometric", ("ultrasonic",),
+    (Param("probability", 0.0, 1.0), Param("cone_half_angle_deg", 5.0, 80.0, unit="deg")),
     _crosstalk_geometric,
-    doc="a sonar hears another copter's ping when the emitter is in its cone and points at it",
-    initial=lambda b: {"probability": _geometric_probability(b)},
+    fit=fits.fit_crosstalk_cone,
+    doc="a sonar hears another copter's ping (with a probability) when the emitter is inside its cone (half-angle "
+        "cone_half_angle_deg) and points at it",
+    initial=lambda b: {"probability": _geometric_probability(b),
+                       "cone_half_angle_deg": math.degrees(b.sonar.half_angle)},
     calibrate=_cal_crosstalk("geometric", "sonar.crosstalk_hear_probability"),
     expected_features=("neighbor_in_beam", "neighbor_distance", "hit_type")))
 register(Effect(

@@ -281,3 +281,34 @@ def fit_update_rate(diag: FitObjective, effect, current, vals):
     scores = [f(c) for c in cands]
     return cands[int(np.argmin(scores))]
 
+
+#: cross-talk cone half-angles (deg) :func:`fit_crosstalk_cone` scores before its local refinement
+CONE_GRID = (15.0, 25.0, 35.0, 40.0, 45.0, 50.0, 55.0, 65.0)
+#: hearing probabilities scored at each cone of :data:`CONE_GRID`
+CONE_GRID_PROBABILITIES = (0.5, 1.0)
+
+
+def fit_crosstalk_cone(diag: FitObjective, effect, current, vals):
+    """Geometric cross-talk's hearing probability p and cone half-angle together: the start values and a coarse grid
+    (each cone of :data:`CONE_GRID` with each p of :data:`CONE_GRID_PROBABILITIES`), then a Nelder–Mead over both from
+    the best. A cone wider than the model's cannot be reached through p ≤ 1, and a narrower one only roughly through
+    p < 1 (p thins every path alike, a cone only the oblique ones), so the cone is searched, not p alone. Every cone
+    tried is a replay of the cross-talk paths (p only redraws the readings, on cached geometry), hence the short grid.
+    With p at 0 the cone changes nothing: it stays at its start value."""
+    sensors = [s for s in effect.sensors if s in diag.tables]
+    if not sensors:
+        return dict(vals)
+    prob, cone = effect.params
+    f = lambda v: diag.objective(effect, current, sensors, v)  # noqa: E731
+    best, best_f = dict(vals), f(vals)
+    for c in CONE_GRID:
+        for p in CONE_GRID_PROBABILITIES:
+            v = {**vals, prob.name: p, cone.name: float(np.clip(c, cone.lo, cone.hi))}
+            s = f(v)
+            if s < best_f:
+                best, best_f = v, s
+    group = [prob, cone]
+    out = nelder_mead(f, best, group, [best[q.name] for q in group], best_f, maxfev=30)
+    if out[prob.name] <= 0.0:
+        out[cone.name] = vals[cone.name]
+    return out

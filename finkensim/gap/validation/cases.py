@@ -240,7 +240,8 @@ CASES: dict[str, Case] = {
         {"_max_amplitude_deg": a}), "ultrasonic"),
     "crosstalk_geometric": Case("crosstalk_geometric", "crosstalk_geometric", lambda r: (
         {"sonar.crosstalk": "geometric", "sonar.schedule": "simultaneous",
-         "sonar.cone_half_angle_deg": float(r.uniform(35, 50))}, None, {"probability": 1.0}), "ultrasonic"),
+         "sonar.cone_half_angle_deg": (c := float(r.uniform(35, 50)))}, None,
+        {"probability": 1.0, "cone_half_angle_deg": c}), "ultrasonic"),
     "crosstalk_constant": Case("crosstalk_constant", "crosstalk_constant", lambda r: (
         {"sonar.crosstalk": "constant", "sonar.crosstalk_probability": (p := float(r.uniform(0.1, 0.4)))}, None,
         {"probability": p}), "ultrasonic"),
