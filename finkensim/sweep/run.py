@@ -81,6 +81,8 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
     runs = sweep.runs()
     out_dir = Path(out) if out is not None else None
     dask: list = []  # [client, cluster or None] once connected
+    if executor == "dask":
+        _drop_sync_cancel_noise()
     if executor == "dask" and scheduler:
         dask[:] = dask_client(workers, scheduler)  # an unreachable scheduler fails before out is touched
     results: Iterator[dict] = iter(())
@@ -147,6 +149,24 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
     df.attrs["failed"] = [int(i) for i in df.loc[df["status"] != "ok", "run_id"]]
     df.attrs["out"] = str(out_dir) if out_dir is not None else None
     return df
+
+
+class _SyncCancelNoise(logging.Filter):
+    """Drops tornado's record of distributed's ``sync`` cancel callback failing with a NameError (a Ctrl-C or SIGTERM
+    that lands before ``sync`` bound its future makes its callback read an unbound name); any other record passes."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[0] if record.exc_info else None
+        return not (exc is NameError and "sync.<locals>.cancel" in record.getMessage())
+
+
+def _drop_sync_cancel_noise() -> None:
+    """Install :class:`_SyncCancelNoise` on ``tornado.application`` once, for the rest of the process: the callback
+    runs on Dask's event-loop thread whenever the loop gets to it, during the interrupted sweep or after its
+    teardown, so a filter bound to a block cannot catch it every time."""
+    logger = logging.getLogger("tornado.application")
+    if not any(isinstance(f, _SyncCancelNoise) for f in logger.filters):
+        logger.addFilter(_SyncCancelNoise())
 
 
 @contextlib.contextmanager
