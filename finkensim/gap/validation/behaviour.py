@@ -136,17 +136,18 @@ def truth_config(case_name: str, seed: int, truth: dict, conventions: Convention
     return cfg
 
 
-def _fly(cfg: Config, flight: Config) -> Config:
-    """``cfg`` with the flight's keys of ``flight`` (:data:`FLIGHT_KEYS`) and the behaviour (:data:`BEHAVIOUR_UPDATES`)."""
+def _fly(cfg: Config, flight: Config, behaviour: dict | None = None) -> Config:
+    """``cfg`` with the flight's keys of ``flight`` (:data:`FLIGHT_KEYS`) and the behaviour (:data:`BEHAVIOUR_UPDATES`
+    plus ``behaviour``)."""
     keys = {}
     for k in FLIGHT_KEYS:
         section, name = k.split(".")
         keys[k] = getattr(getattr(flight, section), name)
-    return cfg.replace({**keys, **BEHAVIOUR_UPDATES})
+    return cfg.replace({**keys, **BEHAVIOUR_UPDATES, **(behaviour or {})})
 
 
 def behaviour_configs(case_name: str, seed: int, truth: dict, diagnosed: Config, calibrated: Config,
-                      conventions: Conventions | None = None) -> dict[str, Config]:
+                      conventions: Conventions | None = None, behaviour: dict | None = None) -> dict[str, Config]:
     """The three configs of :data:`MODELS`, each flying the attraction–repulsion behaviour with the truth's flight keys.
 
     Parameters
@@ -157,6 +158,9 @@ def behaviour_configs(case_name: str, seed: int, truth: dict, diagnosed: Config,
         The diagnosed (base) config.
     calibrated : Config
         The calibrated config of the trial's diagnosis.
+    behaviour : dict, optional
+        Further behaviour keys (dotted key → value) on top of :data:`BEHAVIOUR_UPDATES`, e.g.
+        ``{"behaviour.wall_check": "sequence"}`` (a wall check that reads the ranging and the IMU).
 
     Returns
     -------
@@ -164,8 +168,8 @@ def behaviour_configs(case_name: str, seed: int, truth: dict, diagnosed: Config,
         ``{"truth": Config, "base": Config, "calibrated": Config}``.
     """
     truth_cfg = truth_config(case_name, seed, truth, conventions)
-    return {"truth": _fly(truth_cfg, truth_cfg), "base": _fly(diagnosed, truth_cfg),
-            "calibrated": _fly(calibrated, truth_cfg)}
+    return {"truth": _fly(truth_cfg, truth_cfg, behaviour), "base": _fly(diagnosed, truth_cfg, behaviour),
+            "calibrated": _fly(calibrated, truth_cfg, behaviour)}
 
 
 def behaviour_sweeps(configs: dict[str, Config], replicates: int = 100, duration: float = 20.0, seed: int = 7,
@@ -251,7 +255,7 @@ def judge(stats: dict[str, dict], metrics=METRICS) -> dict:
 
 
 def run_behaviour_case(name: str, seed: int, n_flights: int = 2, duration: float = 30.0, replicates: int = 100,
-                       sweep_duration: float = 20.0, sweep_seed: int = 7) -> dict:
+                       sweep_duration: float = 20.0, sweep_seed: int = 7, behaviour: dict | None = None) -> dict:
     """One case: diagnose its flights (:func:`~finkensim.gap.validation.cases.run_case`), calibrate
     (:func:`~finkensim.gap.quantify.calibrate.write_calibrated`), sweep truth, base and calibrated, judge.
 
@@ -267,6 +271,8 @@ def run_behaviour_case(name: str, seed: int, n_flights: int = 2, duration: float
         Seconds per diagnosed flight.
     replicates, sweep_duration, sweep_seed
         As :func:`behaviour_sweeps` (``sweep_duration`` in s).
+    behaviour : dict, optional
+        Further behaviour keys (:func:`behaviour_configs`).
 
     Returns
     -------
@@ -283,7 +289,8 @@ def run_behaviour_case(name: str, seed: int, n_flights: int = 2, duration: float
     diag_cpu = time.process_time() - t0
     with tempfile.TemporaryDirectory(prefix="finkensim-behaviour-") as tmp:
         cal = load_config(write_calibrated(report, Path(tmp) / "calibrated.toml"))
-        configs = behaviour_configs(name, seed, row["truth"], report.details.config, cal, keep["conventions"])
+        configs = behaviour_configs(name, seed, row["truth"], report.details.config, cal, keep["conventions"],
+                                    behaviour)
         stats = behaviour_sweeps(configs, replicates=replicates, duration=sweep_duration, seed=sweep_seed)
     verdict = judge(stats)
     base_d, cal_d = configs["base"].to_dict(), configs["calibrated"].to_dict()
@@ -294,7 +301,8 @@ def run_behaviour_case(name: str, seed: int, n_flights: int = 2, duration: float
             "stats": {k: {kk: vv for kk, vv in v.items() if kk != "values"} for k, v in stats.items()},
             "judgement": verdict, "diagnosis_cpu_s": diag_cpu,
             "sweep_cpu_s": sum(v["cpu_s"] for v in stats.values()), "replicates": replicates,
-            "sweep_duration": sweep_duration, "flights": n_flights, "flight_duration": duration}
+            "sweep_duration": sweep_duration, "flights": n_flights, "flight_duration": duration,
+            "behaviour": {**BEHAVIOUR_UPDATES, **(behaviour or {})}}
 
 
 def _cell(s: dict, m: str) -> str:
@@ -344,8 +352,11 @@ def main(argv=None) -> int:
     p.add_argument("--replicates", type=int, default=100)
     p.add_argument("--sweep-duration", type=float, default=20.0, help="seconds per sweep episode")
     p.add_argument("--sweep-seed", type=int, default=7)
+    p.add_argument("--wall-check", choices=("none", "per_reading", "sequence"), default="none",
+                   help="behaviour.wall_check of every config (per_reading reads the ranging, sequence also the IMU)")
     p.add_argument("--out", required=True)
     a = p.parse_args(argv)
+    behaviour = {"behaviour.wall_check": a.wall_check}
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "rows.jsonl"
@@ -354,7 +365,8 @@ def main(argv=None) -> int:
     for name in a.cases or [c for c in CASES if c not in NOT_FLOWN]:
         if name in done:
             continue
-        row = run_behaviour_case(name, a.seed, a.flights, a.duration, a.replicates, a.sweep_duration, a.sweep_seed)
+        row = run_behaviour_case(name, a.seed, a.flights, a.duration, a.replicates, a.sweep_duration, a.sweep_seed,
+                                 behaviour)
         rows.append(row)
         with path.open("a") as f:
             f.write(json.dumps(row, default=lambda v: None if isinstance(v, float) and math.isnan(v) else str(v))
