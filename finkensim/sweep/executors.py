@@ -7,6 +7,7 @@ order of completion. A run that raises is a result with status "error"; a worker
 from __future__ import annotations
 
 import contextlib
+import threading
 import math
 import time
 from typing import Any, Iterator, Mapping
@@ -134,13 +135,24 @@ def execute(task: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+#: set while a sweep's block (:func:`terminate_as_interrupt`) has received Ctrl-C or SIGTERM: the KeyboardInterrupt the
+#: handler raises can land inside a weakref or ``__del__`` callback, where Python prints and drops it, so the sweep's
+#: loop also asks :func:`interrupt_requested`
+_REQUESTED = threading.Event()
+
+
+def interrupt_requested() -> bool:
+    """Whether Ctrl-C or SIGTERM arrived within the current :func:`terminate_as_interrupt` block."""
+    return _REQUESTED.is_set()
+
+
 @contextlib.contextmanager
 def terminate_as_interrupt():
     """Within the block, SIGTERM raises KeyboardInterrupt in the main thread (as Ctrl-C does), so a sweep
     ends the same way for both: running runs stopped, finished parts kept, ``resume`` continues. Yields a
-    list that holds the signal number once SIGTERM arrived. Outside the main thread it changes nothing."""
+    list that holds the signal number once SIGTERM arrived. Either signal also sets :func:`interrupt_requested`.
+    Outside the main thread it changes nothing."""
     import signal
-    import threading
 
     caught: list[int] = []
     if threading.current_thread() is not threading.main_thread():
@@ -149,13 +161,22 @@ def terminate_as_interrupt():
 
     def on_term(signum, frame):
         caught.append(signum)
+        _REQUESTED.set()
         raise KeyboardInterrupt
 
+    def on_int(signum, frame):
+        _REQUESTED.set()
+        raise KeyboardInterrupt
+
+    _REQUESTED.clear()
     old = signal.signal(signal.SIGTERM, on_term)
+    old_int = signal.signal(signal.SIGINT, on_int)
     try:
         yield caught
     finally:
         signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, old_int)
+        _REQUESTED.clear()
 
 
 def _lost(task, exc: BaseException) -> dict[str, Any]:

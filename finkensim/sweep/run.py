@@ -12,7 +12,7 @@ from typing import Any, Callable, Iterator, Mapping
 
 from .parsing import SweepError
 from .design import Sweep
-from .executors import check_executor, dask_client, run_dask, run_process, run_serial
+from .executors import check_executor, dask_client, interrupt_requested, run_dask, run_process, run_serial
 from .store import prepare_out, read_parts, write_outputs, write_part
 from .tables import arrow_schema, result_row
 
@@ -126,6 +126,8 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
                 bar.update(1)
                 if n_failed:
                     bar.set_postfix(failed=n_failed, refresh=False)
+                if interrupt_requested():  # a Ctrl-C / SIGTERM whose KeyboardInterrupt a callback swallowed
+                    raise KeyboardInterrupt
     finally:
         # tearing a local Dask cluster down while futures are cancelled (Ctrl-C, SIGTERM) logs scheduler errors about
         # keys it can no longer gather, and distributed's own sync helper can fail in its cancel callback (tornado logs
