@@ -160,8 +160,8 @@ class SonarConfig(_Section):
     beam_half_angle_deg: float = _f(-1.0, "deg", -1.0, 90.0, doc="half-width of the rays of beam = 'cone'; -1 = "
                                     "cone_half_angle_deg (the beam_width effect fits it apart from the cross-talk cone)")
     down_enabled: bool = _f(True, doc="down-facing sonar reading the altitude")
-    range_scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every echo distance (speed of sound relative to the "
-                            "assumed one; the gap effect sound_speed fits it)")
+    range_scale: float = _f(1.0, "", 0.5, 2.0, doc="factor on every echo distance and its error (speed of "
+                            "sound relative to the assumed one; the gap effect sound_speed fits it)")
     bias: float = _f(0.0, "m", -1.0, 1.0, doc="constant offset added to every echo (the gap effect sonar_bias fits it)")
     crosstalk_hear_probability: float = _f(1.0, "", 0.0, 1.0, doc="geometric cross-talk: probability that a "
                                            "receiver in cross-talk position hears the emitter (crosstalk_geometric)")

@@ -9,11 +9,20 @@ import pytest
 
 import finkensim.gap  # noqa: F401  (registers the whole catalogue, radio effects included)
 from finkensim.gap.attribute import effects as fx
+from finkensim.config import load_config
 from finkensim.testing import PluginError, check_effect
 
 @pytest.mark.parametrize("name", sorted(fx.REGISTRY))
 def test_every_catalogued_effect_passes_its_checker(name):
     check_effect(fx.REGISTRY[name])
+
+
+@pytest.mark.parametrize("crosstalk", ["off", "constant"])
+@pytest.mark.parametrize("name", sorted(fx.REGISTRY))
+def test_every_catalogued_effect_passes_its_checker_on_a_base_without_geometric_crosstalk(name, crosstalk):
+    """Neutral start values stay neutral on another base model too (crosstalk_geometric at probability 0 once set
+    the firing schedule of a base without geometric cross-talk to simultaneous)."""
+    check_effect(fx.REGISTRY[name], load_config().replace({"sonar.crosstalk": crosstalk}))
 
 
 # --- docs/architecture.md, "Add an effect", literally ------------------------------------------------------------

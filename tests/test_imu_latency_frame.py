@@ -92,17 +92,19 @@ def _residual(cfg, flights, latency):
 
 
 def test_the_frame_corrected_imu_table_agrees_with_the_simulator(late_flight, monkeypatch):
-    """Flown with ``imu.latency`` = 0.3 s and diagnosed at it, the table's windows match the log's to a tenth of
-    the accelerometer's white noise over a window (0.004 m/s at the default density; measured: 0.0001 m/s rms, what
-    is left being second order in the turn's change across a window). Without the turn: 0.012 m/s, three times that
-    noise (the one-model gap of issue 37); the mean turn alone leaves 0.0056 m/s."""
+    """Flown with ``imu.latency`` = 0.3 s and diagnosed at it, the table's windows match the log's to half the
+    accelerometer's white noise over a window (0.004 m/s at the default density; measured: 0.0017 m/s rms, what is
+    left being the turn's change across a window beyond its linear trend). Without the turn: 0.012 m/s, three times
+    that noise (the one-model gap of issue 37); the mean turn alone leaves 0.0056 m/s. (Each sample's own turn
+    deviation left 0.0001 m/s here, on exact poses, but metres per second on tracked ones:
+    :func:`test_tracked_poses_at_a_high_rate_do_not_blow_up_the_turn`.)"""
     cfg, flights = late_flight
     corrected = _residual(cfg, flights, cfg.imu.latency)
     monkeypatch.setattr(predictive, "turn_windows", lambda windows, turn, shift: None)
     unturned = _residual(cfg, flights, cfg.imu.latency)
     white = load_config().imu.acc_noise_density * np.sqrt(load_config().gap.imu_window)
     assert unturned > 2 * white, unturned  # the flight turns enough for the test to mean something
-    assert corrected < 0.1 * white, (corrected, unturned)
+    assert corrected < 0.5 * white, (corrected, unturned)
 
 
 def test_no_latency_turns_nothing(late_flight, monkeypatch):
@@ -114,3 +116,20 @@ def test_no_latency_turns_nothing(late_flight, monkeypatch):
 
     monkeypatch.setattr(predictive, "imu_latency_turn", refuse)
     assert np.isfinite(_residual(cfg, flights, 0.0))
+
+
+def test_tracked_poses_at_a_high_rate_do_not_blow_up_the_turn(monkeypatch):
+    """Logged at 50 Hz with 9 mm / 0.02 rad of tracking noise on the poses (a point of gap-validate's conventions axis
+    where ``latency`` + ``ranging_bias`` seed 0 named pose_noise instead of the IMU's 0.22 s latency), the turned
+    windows stay closer to the log's than the unturned ones: the turn's change across a window is taken as its
+    linear trend in time, not as each sample's deviation, whose product with the poses' one-step accelerations was
+    noise of about 1 m/s per sample (σ·√6/dt) and made every lag but 0 score worse than no lag at all."""
+    cfg = load_config().replace({**FLIGHT, "simulation.dt": 0.02})
+    log = simulate_flight(cfg, duration=20.0, seed=7)[0]
+    rng = np.random.default_rng(0)
+    log.pose = log.pose + rng.normal(size=log.pose.shape) * np.array([0.009, 0.009, 0.02])
+    flights = prepare_flights([log], ["tracked.npz"], cfg)
+    corrected = _residual(cfg, flights, cfg.imu.latency)
+    monkeypatch.setattr(predictive, "turn_windows", lambda windows, turn, shift: None)
+    unturned = _residual(cfg, flights, cfg.imu.latency)
+    assert corrected < unturned, (corrected, unturned)

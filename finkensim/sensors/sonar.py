@@ -84,7 +84,7 @@ same code with their own work buffers. This module holds the batched Python API;
 outlined copies of the same Python functions (identical results; much shorter compilation).
 
 **Fields beyond the config.** :class:`SonarModel` also has ``range_scale`` (1), ``bias`` (0 m) and
-``crosstalk_hear_probability`` (1): an echo reads range_scale · d + bias before its error, and a
+``crosstalk_hear_probability`` (1): an echo reads range_scale · (d + error) + bias, and a
 receiver in geometric cross-talk position hears the emitter with that probability (uniform
 ``8k + 6`` of the cell, drawn only below 1). The defaults change nothing; the gap diagnosis fits them.
 ``crosstalk`` is a bit set (1 constant, 2 geometric, 3 both).

@@ -305,7 +305,8 @@ def crosstalk_path(n, k, sonar_buf, slot, sonar, cand, n_cand, spread, scratch):
 @njit(cache=True, inline="always")
 def echo_error(key, k, sonar):
     """The random error (m) of an echo reading of sonar k under ``sonar.error`` (random numbers of block k of
-    ``key``); :func:`echo_reading` adds it to range_scale · d + bias. Not for ``ERROR_NONE`` (no error drawn)."""
+    ``key``); :func:`echo_reading` adds it, times range_scale, to range_scale · d + bias. Not for ``ERROR_NONE`` (no
+    error drawn)."""
     if sonar.error == ERROR_GAUSSIAN:
         return sonar.sigma * normal(key, 4 * k + 1)
     u = uniform(key, 8 * k + 1)
@@ -319,9 +320,12 @@ def echo_error(key, k, sonar):
 def echo_reading(d, echo, key, k, sonar, err=None):
     """Echo reading (m, unclamped) of sonar k for true distance d; ``echo`` False → max_range exactly.
 
-    An echo reads range_scale · d + bias plus the error of ``sonar.error`` (:func:`echo_error`: random numbers of
-    block k of ``key``, see :mod:`finkensim.sensors.sonar`), or plus ``err`` m when given (that error drawn
-    beforehand, e.g. once for many evaluations of other parameters).
+    An echo reads range_scale · (d + e) + bias with e the error of ``sonar.error`` (:func:`echo_error`: random
+    numbers of block k of ``key``, see :mod:`finkensim.sensors.sonar`), or ``err`` m when given (that error drawn
+    beforehand, e.g. once for many evaluations of other parameters). The sonar times an echo and converts the time
+    with its assumed speed of sound, so a wrong speed (range_scale ≠ 1) scales the echo's path, its error
+    included; the bias is a constant offset of the conversion. (Written range_scale · d + bias + range_scale · e:
+    at range_scale 1 the same floating-point operations as before the error was scaled.)
     """
     if not echo:
         return sonar.max_range
@@ -329,8 +333,8 @@ def echo_reading(d, echo, key, k, sonar, err=None):
     if sonar.error == ERROR_NONE:
         return y
     if err is None:
-        return y + echo_error(key, k, sonar)
-    return y + err
+        return y + echo_error(key, k, sonar) * sonar.range_scale
+    return y + err * sonar.range_scale
 
 
 @njit(cache=True, inline="always")
@@ -350,7 +354,8 @@ def measured_reading(d, echo, path, key, k, sonar, err=None):
     with probability ``crosstalk_probability``; geometric cross-talk reads path/2 + jitter when that
     arrives first (heard with probability ``crosstalk_hear_probability``). A cross-talk reading is an
     echo time converted like any other, so ``range_scale`` and ``bias`` apply to it too: range_scale · d/2
-    + bias (they are 1 and 0 unless the gap diagnosis fits them, and then the reading is d/2 exactly).
+    + bias, its jitter scaled too (they are 1 and 0 unless the gap diagnosis fits them, and then the reading is d/2
+    exactly).
     """
     y = echo_reading(d, echo, key, k, sonar, err)
     if sonar.crosstalk & CROSSTALK_CONSTANT:
@@ -360,7 +365,7 @@ def measured_reading(d, echo, path, key, k, sonar, err=None):
         if sonar.crosstalk_hear_probability >= 1.0 or uniform(key, 8 * k + HEAR_COIN) < sonar.crosstalk_hear_probability:
             c = 0.5 * path * sonar.range_scale + sonar.bias
             if sonar.crosstalk_jitter > 0.0:
-                c += sonar.crosstalk_jitter * normal(key, 4 * k + 2)
+                c += sonar.crosstalk_jitter * normal(key, 4 * k + 2) * sonar.range_scale
             if c < y:
                 y = c
     return clamp_reading(y, sonar)

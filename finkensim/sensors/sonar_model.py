@@ -74,7 +74,8 @@ class SonarModel(NamedTuple):
 
     Fields whose defaults change nothing and which the gap diagnosis fits as candidate effects (config keys
     ``sonar.range_scale``, ``sonar.bias``, ``sonar.crosstalk_hear_probability``): range_scale, the factor on every
-    echo distance (speed of sound differs from the assumed one); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
+    echo distance and its error (speed of sound differs from the assumed one: the echo's time is converted with the
+    wrong speed); bias m, added to every echo (both apply to cross-talk readings as well: they are echo times
     converted to distance like any other); crosstalk_hear_probability, the probability that a
     receiver in geometric cross-talk position actually hears the emitter (1 = always, drawn only below 1).
     update_hz (``sonar.update_hz``; 0 = every step) and update_phase s (``sonar.update_phase``): the sample-and-hold

@@ -27,7 +27,8 @@ def window_weights(t, s, h, b):
 def naive_imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b):
     """(turn (K, N) rad, shift (K, N, 2) m/s): the weighted mean over the window ending at samples[k] of the turn
     θ_j = ψ[j] − ψ[j − d], d = samples[k] − times[k], with the weights of :func:`window_weights`; and the sum over
-    the window of (weight / dt_j)·(θ_j − mean)·Δu[j − d], Δu the change of the one-step velocities
+    the window of (weight / dt_j)·β·(t_j − t̄)·Δu[j − d], β the weighted least-squares slope of θ in time (t̄ the
+    weighted mean time: :func:`numpy.polyfit` with weights √w), Δu the change of the one-step velocities
     u_i = (p_i − p_{i−1}) / (t_i − t_{i−1}) from sample i − 1 to i."""
     K, N = samples.size, yaw_unwrapped.shape[1]
     u = np.diff(pos, axis=0) / np.diff(t)[:, None, None]  # u[i - 1] = u_i
@@ -41,7 +42,10 @@ def naive_imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b):
         j = np.flatnonzero(w)
         theta = yaw_unwrapped[j] - yaw_unwrapped[j - d]  # (J, N)
         turn[k] = (w[j, None] * theta).sum(axis=0) / w[j].sum()
-        shift[k] = ((w[j] / dts[j])[:, None, None] * (theta - turn[k])[..., None] * du[j - d]).sum(axis=0)
+        tbar = (w[j] * t[j]).sum() / w[j].sum()
+        slope = np.polyfit(t[j], theta, 1, w=np.sqrt(w[j]))[0] if j.size > 1 and np.ptp(t[j]) > 0 else np.zeros(N)
+        dev = slope[None, :] * (t[j] - tbar)[:, None]  # (J, N)
+        shift[k] = ((w[j] / dts[j])[:, None, None] * dev[..., None] * du[j - d]).sum(axis=0)
     return turn, shift
 
 

@@ -148,16 +148,17 @@ def naive_echo(d, echo, k, u, z, sp):
     """Echo reading of sonar k (unclamped); u, z: the copter's uniforms and normals (8 and 4 per sonar)."""
     if not echo:
         return sp.max_range
+    # the echo's time converted with the assumed speed of sound: the range scale applies to its error too
     y = d * sp.range_scale + sp.bias
     if sp.error == 0:  # none
         return y
     if sp.error == 1:  # gaussian
-        return y + sp.sigma * z[4 * k + 1]
+        return y + sp.sigma * z[4 * k + 1] * sp.range_scale
     R = math.sqrt(-2.0 * sp.sigma ** 2 * math.log(u[8 * k + 1]))  # Rayleigh by inversion
     s = math.sqrt((4.0 - math.pi) / 2.0) * sp.sigma
     if sp.error == 3:  # seed: the report's sign
-        return y + (R - s)
-    return y + sp.rayleigh_sign * (R - s)
+        return y + (R - s) * sp.range_scale
+    return y + sp.rayleigh_sign * (R - s) * sp.range_scale
 
 
 def naive_measured(d, echo, path, k, u, z, sp):
@@ -169,8 +170,8 @@ def naive_measured(d, echo, path, k, u, z, sp):
         y = 0.5 * d * sp.range_scale + sp.bias
     if sp.crosstalk & 2 and path < math.inf:
         if sp.crosstalk_hear_probability >= 1.0 or u[8 * k + 6] < sp.crosstalk_hear_probability:
-            c = 0.5 * path * sp.range_scale + sp.bias + (sp.crosstalk_jitter * z[4 * k + 2] if sp.crosstalk_jitter > 0
-                                                         else 0.0)
+            c = 0.5 * path * sp.range_scale + sp.bias + (sp.crosstalk_jitter * z[4 * k + 2] * sp.range_scale
+                                                         if sp.crosstalk_jitter > 0 else 0.0)
             y = min(y, c)
     return min(sp.max_range, max(sp.min_range, y))
 

@@ -215,8 +215,8 @@ def _cal_crosstalk(kind: str, probability_key: str):
     configured schedule fires every copter at once, as the effect assumes)."""
     def cal(v: dict, cfg: Config) -> dict:
         now = cfg.sonar.crosstalk
-        if kind == "constant" and v["probability"] == 0.0 and kind not in now.split("+"):
-            return {}  # probability 0 is no cross-talk: nothing to switch on (_crosstalk_constant)
+        if v["probability"] == 0.0 and kind not in now.split("+"):
+            return {}  # probability 0 is no cross-talk: nothing to switch on (_crosstalk_constant, _geometric)
         out = {probability_key: v["probability"]}
         if kind not in now.split("+"):
             out["sonar.crosstalk"] = kind if now == "off" else "geometric+constant"
@@ -253,6 +253,8 @@ def _cal_beam(v: dict, cfg: Config) -> dict:
 def _crosstalk_geometric(base: ModelParams, v: dict) -> ModelParams:
     # without geometric cross-talk in the base model the schedule is unknown: every copter fires at once
     geometric = bool(base.sonar.crosstalk & CROSSTALK_GEOMETRIC)
+    if v["probability"] == 0.0 and not geometric:
+        return base  # probability 0 is no cross-talk: the base model as it is, its schedule and cone unchanged
     cone = {}
     deg = v.get("cone_half_angle_deg")
     if deg is not None and not _same_cone(float(deg), base.sonar.half_angle):

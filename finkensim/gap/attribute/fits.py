@@ -206,6 +206,8 @@ def fit_bulge(diag: FitObjective, effect, current, vals):
 
 #: s of each flight's start searched on the full rate grid by :func:`hold_rhythms` (then refined on all of it)
 RHYTHM_WINDOW = 120.0
+#: cycles over the longest flight to which :func:`hold_rhythms` refines each of its best rates
+REFINE_RESOLUTION = 0.01
 
 
 def _coherence(rates, times):
@@ -230,7 +232,8 @@ def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 
     the mean over flights of |Σ exp(2πi·rate·t)| / count over the changes' times t (1: every change on one rhythm; the
     harmonics of a true rate are smeared by the changes' rounding to samples; rates at or above 2/3 of the log rate
     are not held at all and are not searched). The rate grid stays in phase to ``resolution`` cycles over the first
-    :data:`RHYTHM_WINDOW` s of the flights; on longer flights each of the best rates is refined on all their changes.
+    :data:`RHYTHM_WINDOW` s of the flights; each of the best rates is then refined on all their changes, on a grid in
+    phase to :data:`REFINE_RESOLUTION` cycles over the longest flight.
     The phase is the mean direction of the flights' sums.
     """
     times, longest, fastest = [], 0.0, math.inf
@@ -254,13 +257,15 @@ def hold_rhythms(flights, lo: float, hi: float, n: int = 3, resolution: float = 
     out = []
     for i in np.argsort(-strength):
         if all(abs(rates[i] - r) > 2 * resolution / window for r, _, _ in out):
-            r, z, st = float(rates[i]), total[i], float(strength[i])
-            if longest > window:  # refine on every change: a grid in phase over the longest flight
-                step = resolution / window
-                fine = r + np.arange(-step, step + 1e-12, resolution / longest)
-                fs, ft = _coherence(fine, times)
-                j = int(np.argmax(fs))
-                r, z, st = float(fine[j]), ft[j], float(fs[j])
+            # refine on every change, over ± one grid step: a grid in phase to REFINE_RESOLUTION cycles over the
+            # longest flight (a rate off by a grid step of 0.25 cycles drifts the hold moments by a quarter period
+            # over the flight: a calibrated 2.4 Hz sonar, 0.13 % off, left 8 % of the gap)
+            step = resolution / window
+            r_grid = float(rates[i])
+            fine = r_grid + np.arange(-step, step + 1e-12, REFINE_RESOLUTION / longest)
+            fs, ft = _coherence(fine, times)
+            j = int(np.argmax(fs))
+            r, z, st = float(fine[j]), ft[j], float(fs[j])
             out.append((r, float((np.angle(z) / (2 * np.pi)) % 1.0), st))
         if len(out) == n:
             break
