@@ -117,7 +117,8 @@ def test_hold_rhythms_find_the_rate_and_phase_of_a_simulated_hold(held_flight):
     cfg, log = held_flight                                  # 8 Hz, measuring from t = 0, at 100 Hz
     found = hold_rhythms([SimpleNamespace(log=log, dt=cfg.simulation.dt)], 0.0, 50.0)
     rate, phase, strength = found[0]
-    assert abs(rate - 8.0) < 0.25 / 3.0 and strength > 0.8   # within the grid's resolution (0.25 cycles / 3 s)
+    # refined to 0.01 cycles over the flight (fits.REFINE_RESOLUTION): a tenth of the coarse grid's 0.25 cycles / 3 s
+    assert abs(rate - 8.0) < 0.025 / 3.0 and strength > 0.8
     assert min(phase, 1 - phase) < 0.1                      # 0 periods, late by the rounding to samples
     none, _, _ = simulated_without_hold()
     assert hold_rhythms([SimpleNamespace(log=none, dt=0.01)], 0.0, 50.0)[0][2] < 0.4   # chance peaks only
