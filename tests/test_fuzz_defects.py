@@ -436,3 +436,27 @@ def test_the_dask_sync_cancel_noise_is_dropped_and_nothing_else():
     assert not logger.filter(record(noise, NameError("future")))
     assert logger.filter(record("Exception in callback functools.partial(<function other>)", NameError("x")))
     assert logger.filter(record(noise, ValueError("a real error")))
+
+
+def test_a_local_clusters_errors_are_dropped_only_after_an_interrupt():
+    """A SIGTERM to the sweep's process group ends the Dask workers too; the scheduler then logged "Couldn't gather
+    keys" before the sweep's one line (seen in a full suite): once an interrupt is requested such records are
+    dropped, before it they pass, and CRITICAL ones always pass."""
+    import logging
+
+    from finkensim.sweep import executors
+    from finkensim.sweep.run import _drop_sync_cancel_noise
+
+    _drop_sync_cancel_noise()
+    logger = logging.getLogger("distributed.scheduler")
+
+    def passes(level):
+        return logger.filter(logging.LogRecord(logger.name, level, __file__, 1, "Couldn't gather keys", (), None))
+
+    executors._REQUESTED.clear()
+    assert passes(logging.ERROR)
+    executors._REQUESTED.set()
+    try:
+        assert not passes(logging.ERROR) and not passes(logging.WARNING) and passes(logging.CRITICAL)
+    finally:
+        executors._REQUESTED.clear()

@@ -193,6 +193,22 @@ def run_serial(tasks: list[dict]) -> Iterator[dict]:
         yield execute(task)
 
 
+def stop_pool(pool) -> None:
+    """Shut the ProcessPoolExecutor ``pool`` down now: queued tasks cancelled, running workers terminated."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in procs:
+        proc.terminate()
+    for proc in procs:
+        proc.join(5.0)
+    # The pool's manager thread closes its wake-up pipe when it sees the workers gone; at interpreter exit
+    # concurrent.futures wakes every manager thread still known, and one closing at that moment wrote "Bad file
+    # descriptor" to stderr (a race in CPython 3.11). Waiting for the thread here ends the race.
+    if manager is not None:
+        manager.join(5.0)
+
+
 def run_process(tasks: list[dict], workers: int) -> Iterator[dict]:
     """The results of ``tasks`` in order of completion, from a pool of ``workers`` spawned processes
     (at most 4 tasks per worker in flight); closing the iterator shuts the pool down."""
@@ -224,12 +240,7 @@ def run_process(tasks: list[dict], workers: int) -> Iterator[dict]:
             fill()
     finally:
         if pending:  # interrupted (Ctrl-C, SIGTERM, an error): stop the running runs now, not when they end
-            procs = list((getattr(pool, "_processes", None) or {}).values())
-            pool.shutdown(wait=False, cancel_futures=True)
-            for proc in procs:
-                proc.terminate()
-            for proc in procs:
-                proc.join(5.0)
+            stop_pool(pool)
         else:
             pool.shutdown(wait=True)
 

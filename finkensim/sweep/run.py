@@ -162,13 +162,30 @@ class _SyncCancelNoise(logging.Filter):
         return not (exc is NameError and "sync.<locals>.cancel" in record.getMessage())
 
 
+class _InterruptNoise(logging.Filter):
+    """Drops a local Dask cluster's records below CRITICAL once Ctrl-C or SIGTERM arrived
+    (:func:`~.executors.interrupt_requested`): a signal sent to the sweep's process group ends the workers too, and
+    the scheduler, on its event-loop thread, logs keys it can no longer gather before the main thread has reached
+    the quiet teardown below."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.CRITICAL or not interrupt_requested()
+
+
+#: the loggers of a local cluster's parts that run in the sweep's own process
+_CLUSTER_LOGGERS = ("distributed.scheduler", "distributed.client", "distributed.core", "distributed.nanny")
+
+
 def _drop_sync_cancel_noise() -> None:
-    """Install :class:`_SyncCancelNoise` on ``tornado.application`` once, for the rest of the process: the callback
-    runs on Dask's event-loop thread whenever the loop gets to it, during the interrupted sweep or after its
-    teardown, so a filter bound to a block cannot catch it every time."""
-    logger = logging.getLogger("tornado.application")
-    if not any(isinstance(f, _SyncCancelNoise) for f in logger.filters):
-        logger.addFilter(_SyncCancelNoise())
+    """Install :class:`_SyncCancelNoise` on ``tornado.application`` and :class:`_InterruptNoise` on the local
+    cluster's loggers, once, for the rest of the process: the callbacks run on Dask's event-loop thread whenever
+    the loop gets to them, during the interrupted sweep or after its teardown, so a filter bound to a block cannot
+    catch them every time."""
+    for name, kind in (("tornado.application", _SyncCancelNoise),
+                       *((name, _InterruptNoise) for name in _CLUSTER_LOGGERS)):
+        logger = logging.getLogger(name)
+        if not any(isinstance(f, kind) for f in logger.filters):
+            logger.addFilter(kind())
 
 
 @contextlib.contextmanager

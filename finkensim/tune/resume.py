@@ -56,9 +56,13 @@ def check_same_study(study, spec, created: bool, where: str) -> None:
     if created:
         study.set_user_attr(FINGERPRINT, fp)
         return
+    # Trials first, then the record: the creating process stores the record before its first trial, so a study
+    # seen with trials shows the record when read after them (read the other way round, a process that loads the
+    # study while its creator starts the first trial would take it for an older finkensim's).
+    has_trials = bool(study.get_trials(deepcopy=False))
     old = study.user_attrs.get(FINGERPRINT)
     if old is None:
-        if study.trials:
+        if has_trials:
             raise ConfigError(f"{where} holds a study {spec.study_name!r} without a record of its study file (an "
                               "older finkensim made it): use another --out or study_name")
         study.set_user_attr(FINGERPRINT, fp)

@@ -80,6 +80,8 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
     if executor == "process":
         import os
 
+        from ...sweep.executors import stop_pool
+
         # the workers end with this process, however it ends (SIGKILL included), and use one thread each
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                    initializer=_worker_init, initargs=(os.getpid(),))
@@ -90,11 +92,10 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
                 yield fut.result()
             finished = True
         finally:
-            procs = list((getattr(pool, "_processes", None) or {}).values())
-            pool.shutdown(wait=finished, cancel_futures=True)
-            if not finished:  # interrupted: stop the running trials now
-                for proc in procs:
-                    proc.terminate()
+            if finished:
+                pool.shutdown(wait=True)
+            else:  # interrupted: stop the running trials now
+                stop_pool(pool)
         return
     from ...sweep.executors import dask_client
     from distributed import as_completed as dask_completed
