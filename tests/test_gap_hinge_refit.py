@@ -11,7 +11,6 @@ from finkensim.config import load_config
 from finkensim.gap import Diagnosis
 from finkensim.gap.attribute.effects import REGISTRY
 from finkensim.gap.attribute.hinge import fit_hinge, hinge_version
-from finkensim.gap.model.bulge import HINGE_KEYS
 from finkensim.gap.model.params import ModelParams
 from finkensim.gap.validation.cases import CASES, generate
 from finkensim.world import walls_from_positions
@@ -67,9 +66,41 @@ def test_the_hinge_refit_recovers_the_max_amplitude(bulge_case):
     """From a rough bulge (not the truth) the hinge version's fit finds the drawn maximum amplitude."""
     diag, truth = bulge_case
     hv = hinge_version("wall_bulge")
-    assert [q.name for q in hv.free(diag)] == list(HINGE_KEYS)
+    assert [q.name for q in hv.free(diag)] == ["max_amplitude_deg", "threshold"]  # the hinge height set by a rule
     vals = fit_hinge(diag, hv, diag.base, {"amplitude": 0.2, "reach": 1.0, "response": 0.5, "shape": 4.0})
     assert vals["max_amplitude_deg"] == pytest.approx(truth["_max_amplitude_deg"], abs=3.0)
     # the fitted walls score better on the training readings than the configured rigid ones
     wb, sensors = REGISTRY["wall_bulge"], ["ultrasonic"]
     assert diag.objective(hv, diag.base, sensors, vals) < diag.objective(wb, diag.base, sensors, wb.start(diag.base))
+
+
+def test_a_hinge_refit_gets_intervals_for_the_keys_it_flies(bulge_case):
+    """The calibration's distributions (``quantify/intervals.py``) profile the parameters the selected values
+    belong to: the hinge keys of a bulge refitted as hinge walls (the catalogue's bulge parameters are not among its
+    values), each interval around its fit and inside its range; the flexible bulge's ``hinge`` weight profiled with
+    the flexible version's ``apply`` (the catalogue's ignores it)."""
+    from finkensim.gap.attribute.hinge import effect_of
+    from finkensim.gap.attribute.parsimony import flexible_version
+    from finkensim.gap.quantify.intervals import parameter_intervals
+
+    diag, truth = bulge_case
+    hv = hinge_version("wall_bulge")
+    vals = fit_hinge(diag, hv, diag.base, {"amplitude": 0.2, "reach": 1.0, "response": 0.5, "shape": 4.0})
+    assert effect_of("wall_bulge", vals).params == hv.params
+    flex_vals = {"amplitude": 0.05, "reach": 0.5, "response": 0.3, "shape": 2.0, "hinge": 0.5}
+    assert effect_of("wall_bulge", flex_vals).params == flexible_version("wall_bulge").params
+    assert effect_of("wall_bulge", {"amplitude": 0.05}) is REGISTRY["wall_bulge"]
+    assert effect_of("sonar_bias", {"bias": 0.1}) is REGISTRY["sonar_bias"]
+
+    iv = parameter_intervals(diag, {"wall_bulge": vals})["wall_bulge"]
+    assert set(iv) == {"max_amplitude_deg", "threshold"}  # the hinge height is set by a rule, not fitted
+    for q in hv.params[:2]:
+        d = iv[q.name]
+        assert q.lo <= d["lo"] <= d["hi"] <= q.hi and d["unit"] == q.unit
+        assert d["value"] == vals[q.name] and sum(d["probabilities"]) == pytest.approx(1.0)
+    # the maximum amplitude is informed: its interval is a small part of its range and holds the drawn one
+    amp = iv["max_amplitude_deg"]
+    assert amp["hi"] - amp["lo"] < 0.25 * 80.0
+    assert amp["lo"] - 3.0 <= truth["_max_amplitude_deg"] <= amp["hi"] + 3.0
+    flex = parameter_intervals(diag, {"wall_bulge": flex_vals})["wall_bulge"]
+    assert "hinge" in flex and 0.0 <= flex["hinge"]["lo"] <= flex["hinge"]["hi"] <= 1.0

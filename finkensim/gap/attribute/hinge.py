@@ -26,17 +26,20 @@ from .fit_result import FitResult
 from .fits import nelder_mead
 from .parsimony import flexible_version
 
-__all__ = ["hinge_version", "fit_hinge", "refit_as_hinge"]
+__all__ = ["hinge_version", "fit_hinge", "refit_as_hinge", "effect_of"]
 
 #: evaluations of the hinge version's Nelder–Mead after its starting points (each one replays the training readings)
 HINGE_MAXFEV = 30
 
 
 def _hinge_informed(objective) -> tuple[str, ...]:
-    """A log with sonar readings informs how far readings shorten (lever · sin(1.1 · max amplitude): the maximum
-    amplitude on the configured lever, the hinge height where that lever is too short, :func:`fit_hinge`) and how
-    close a copter must come (threshold); none without sonar readings."""
-    return HINGE_KEYS if "ultrasonic" in objective.tables else ()
+    """A log with sonar readings informs how far readings shorten (lever · sin(1.1 · max amplitude)) and how close
+    a copter must come (threshold); none without sonar readings. One quantity, not two, for the amplitude and the
+    lever: :func:`fit_hinge` sets the hinge height by a rule (the configured one unless its lever is too short) and
+    fits the maximum amplitude on it, so the maximum amplitude carries that quantity's uncertainty (its bootstrap
+    interval, :mod:`~finkensim.gap.quantify.intervals`) and the hinge height gets none (profiled with the amplitude
+    held, it would claim the same information twice)."""
+    return HINGE_KEYS[:2] if "ultrasonic" in objective.tables else ()
 
 
 def _altitude(objective) -> float:
@@ -153,9 +156,19 @@ def refit_as_hinge(sel) -> None:
                                                                     new.score_heldout)
 
 
+def effect_of(name: str, values: dict) -> fx.Effect:
+    """The effect whose parameters ``values`` are: the hinge version of ``name`` (:func:`hinge_version`, values with
+    the hinge keys), the parsimony step's flexible version (:func:`~.parsimony.flexible_version`, values with a
+    ``hinge`` weight), else the catalogue's. All three apply the same way where they overlap (the catalogue's
+    ``apply`` dispatches on the hinge keys too); what differs is which parameters are free, and the flexible
+    version's ``hinge`` weight, which only it applies."""
+    if HINGE_KEYS[0] in values and hinge_version(name) is not None:
+        return hinge_version(name)
+    if "hinge" in values and flexible_version(name) is not None:
+        return flexible_version(name)
+    return fx.REGISTRY[name]
+
+
 def _effect_of(result):
-    """The effect a FitResult's values belong to: the parsimony step's flexible bulge (a ``hinge`` weight) or the
-    catalogue's (which also applies the hinge version's values)."""
-    if "hinge" in result.values and result.name == "wall_bulge":
-        return flexible_version(result.name)
-    return fx.REGISTRY[result.name]
+    """:func:`effect_of` of a FitResult."""
+    return effect_of(result.name, result.values)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..attribute import effects as fx
+from ..attribute.hinge import effect_of
 from ..model.params import SENSORS
 from ..detect.stats import BlockBootstrap
 
@@ -91,9 +92,9 @@ def parameter_intervals(diag, added_params: dict, seed: int = 0) -> dict:
     out = {}
     current = diag.base
     for name, values in added_params.items():
-        effect = fx.REGISTRY.get(name)
-        if effect is None:
+        if name not in fx.REGISTRY:
             continue
+        effect = effect_of(name, values)  # a bulge refitted as hinge walls has the hinge's parameters
         sensors = [s for s in effect.sensors if s in diag.tables]
         if sensors:
             ids = [diag.block_ids(s, diag.rows_fit[s]) for s in sensors]
