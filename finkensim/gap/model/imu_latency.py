@@ -28,6 +28,13 @@ import numpy as np
 from numba import njit, prange
 
 
+@njit(cache=True, inline="always")
+def _count(s, j, h, b):
+    """c_j of :func:`imu_latency_turn`: how many of the table's b velocity ends j' ∈ [s − b + 1, s] have the stamp j
+    in their window (j' − h, j'] (≤ 0 outside the window)."""
+    return min(s, j + h - 1) - max(s - b + 1, j) + 1
+
+
 @njit(cache=True, parallel=True)
 def imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b, turn, shift):
     """Per IMU window, the mean yaw turned during the lag, turn (K, N) rad, and the first-order term of its change
@@ -63,7 +70,7 @@ def imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b, turn, shift):
             shift[k, n, 0] = 0.0
             shift[k, n, 1] = 0.0
         for j in range(lo, s + 1):
-            c = min(s, j + h - 1) - max(s - b + 1, j) + 1
+            c = _count(s, j, h, b)
             if c <= 0:
                 continue
             w = c * (t[j] - t[j - 1])
@@ -74,7 +81,7 @@ def imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b, turn, shift):
         tbar /= wsum
         tvar = 0.0
         for j in range(lo, s + 1):
-            c = min(s, j + h - 1) - max(s - b + 1, j) + 1
+            c = _count(s, j, h, b)
             if c > 0:
                 tvar += c * (t[j] - t[j - 1]) * (t[j] - tbar) ** 2
         for n in range(N):
@@ -85,13 +92,13 @@ def imu_latency_turn(pos, yaw_unwrapped, t, samples, times, h, b, turn, shift):
             slope = 0.0
             if tvar > 0.0:
                 for j in range(lo, s + 1):
-                    c = min(s, j + h - 1) - max(s - b + 1, j) + 1
+                    c = _count(s, j, h, b)
                     if c > 0:
                         slope += c * (t[j] - t[j - 1]) * (t[j] - tbar) * (
                             yaw_unwrapped[j, n] - yaw_unwrapped[j - d, n] - turn[k, n])
                 slope /= tvar
             for j in range(lo, s + 1):
-                c = min(s, j + h - 1) - max(s - b + 1, j) + 1
+                c = _count(s, j, h, b)
                 if c <= 0:
                     continue
                 i = j - d
