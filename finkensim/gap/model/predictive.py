@@ -18,6 +18,7 @@ from numba import njit, prange
 from ...config import Config
 from ...sensors.sonar_model import CROSSTALK_GEOMETRIC, ERROR_NONE, SCHEDULE_RANDOM_OFFSET, SonarModel
 from . import replay as rp
+from .sonar_context import sonar_features
 from .features import append_identity, nearest_neighbor, range_rate_at, sonar_channel_names, speed, wall_distance
 from ...sensors.sonar_hold import held_steps
 from ...sensors.imu_correction import corrected_window_draws
@@ -177,7 +178,7 @@ class SonarTable(Table):
             K, N = f.samples.size, f.n_copters
             out = np.empty((K, N, S, 8))
             one_ray = f.sonar_model(sonar).with_beam(0.0, 1)
-            rp.sonar_features(f.poses, f.walls, one_ray, f.samples, f.sigma_xy, f.sigma_yaw, out)
+            sonar_features(f.poses, f.walls, one_ray, f.samples, f.sigma_xy, f.sigma_yaw, out)
             y = f.log.ultrasonic[f.samples].copy()  # (K, N, S)
             # readings whose ideal value flips under the tracking noise (grazing a rim, at the range
             # limit) are left out of every score alike: a small ensemble cannot represent them
