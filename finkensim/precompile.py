@@ -27,7 +27,7 @@ diagnosis of two short simulated flights), so that the first ``finkensim gap`` d
 from __future__ import annotations
 
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Callable, Iterator
@@ -126,15 +126,20 @@ def run_job(cfg: Config, job: str, calls: Callable[[Config], None]) -> JobResult
 
 
 def compile_kernels(cfg: Config, workers: int = 2, jobs: dict | None = None,
-                    setup: tuple[str, Callable[[Config], None]] | None = SETUP) -> Iterator[JobResult]:
+                    setup: tuple[str, Callable[[Config], None]] | None = SETUP,
+                    after: dict[str, str] | None = None) -> Iterator[JobResult]:
     """Compile ``cfg``'s kernels into the shared cache: ``setup`` (name, top-level function of the config: the calls
     every job makes first; None: no set-up) in one process, then ``jobs`` (name → top-level function of the config;
     default :data:`JOBS`) on ``workers`` fresh processes (spawned: a forked numba runtime is not safe); yields the
-    set-up's and each job's :class:`JobResult` as it finishes. ``workers=0`` runs them one after another in this
-    process."""
+    set-up's and each job's :class:`JobResult` as it finishes. ``after`` (job → job): a job that calls another's
+    kernels too starts only once that one has finished and loads them from the cache (two processes side by side
+    would both compile them: numba's cache has no lock). ``workers=0`` runs them one after another in this process,
+    each after the one it waits for."""
     jobs = JOBS if jobs is None else jobs
+    after = {job: first for job, first in (after or {}).items() if job in jobs and first in jobs and job != first}
     if workers == 0:
-        for job, calls in ((setup,) if setup else ()) + tuple(jobs.items()):
+        order = [job for job in jobs if job not in after] + [job for job in jobs if job in after]
+        for job, calls in ((setup,) if setup else ()) + tuple((job, jobs[job]) for job in order):
             yield run_job(cfg, job, calls)
         return
     n = min(workers, len(jobs))
@@ -145,6 +150,13 @@ def compile_kernels(cfg: Config, workers: int = 2, jobs: dict | None = None,
             for future in [pool.submit(run_job, cfg, "imports", _imports) for _ in range(n - 1)]:
                 future.result()
             yield first.result()
-        futures = [pool.submit(run_job, cfg, job, calls) for job, calls in jobs.items()]
-        for future in as_completed(futures):
-            yield future.result()
+        running = {pool.submit(run_job, cfg, job, calls): job for job, calls in jobs.items() if job not in after}
+        waiting = [job for job in jobs if job in after]
+        while running:
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                finished = running.pop(future)
+                yield future.result()
+                for job in [j for j in waiting if after[j] == finished]:
+                    waiting.remove(job)
+                    running[pool.submit(run_job, cfg, job, jobs[job])] = job

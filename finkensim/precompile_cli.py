@@ -42,7 +42,8 @@ def cmd_compile(args) -> int:
     print(f"{prog}: {len(jobs)} jobs ({', '.join(jobs)}) on {min(args.workers, len(jobs)) or 'this'} process"
           f"{'es' if args.workers > 1 else ''} into {os.environ.get('NUMBA_CACHE_DIR')}", flush=True)
     n_compiled = 0
-    for result in compile_kernels(cfg, workers=args.workers, jobs=jobs):
+    # the diagnosis's warm-up flies the configuration's closed loop too: it waits for that job and loads it
+    for result in compile_kernels(cfg, workers=args.workers, jobs=jobs, after={"gap diagnosis": "closed loop"}):
         for kernel in result.compiled:
             print(f"  {kernel.name:<28} compiled in {kernel.seconds:5.1f} s  ({result.job})", flush=True)
         if not result.compiled:

@@ -168,3 +168,20 @@ def test_compile_command_runs_its_jobs(capsys, tmp_path):
     assert "3 jobs (closed loop, flight log and figures, gap diagnosis)" in out and "kernels compiled in" in out
     assert main(["compile", "--workers", "-1"]) == 2
     assert "--workers -1: expected 0 (this process) or a positive number" in capsys.readouterr().err
+
+
+def test_a_job_that_needs_another_ones_kernels_runs_after_it():
+    """``compile_kernels(after=...)``: a job that calls another's kernels too (the diagnosis's warm-up flies the
+    closed loop) starts once that one has finished, so that two processes never compile the same kernel side by side;
+    in this process (workers=0) it runs after it whatever the jobs' order."""
+    from finkensim.config import load_config
+    from finkensim.precompile import compile_kernels
+
+    ran = []
+    jobs = {"second": lambda cfg: ran.append("second"), "first": lambda cfg: ran.append("first"),
+            "alone": lambda cfg: ran.append("alone")}
+    results = list(compile_kernels(load_config(), workers=0, jobs=jobs, setup=None, after={"second": "first"}))
+    assert ran == ["first", "alone", "second"] == [r.job for r in results]
+    ran.clear()
+    list(compile_kernels(load_config(), workers=0, jobs=jobs, setup=None, after={"second": "missing"}))
+    assert ran == ["second", "first", "alone"]  # a prerequisite that is not a job is ignored
