@@ -86,12 +86,20 @@ def cmd_gap_validate(args) -> int:
     from tqdm import tqdm
 
     bar = None if args.no_progress else partial(tqdm, desc="gap-validate", file=sys.stderr)
+    from .sweep.executors import terminate_as_interrupt
+
     try:
-        rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
-                          executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar,
-                          calibrate=args.calibrate)
+        with terminate_as_interrupt() as caught:  # SIGTERM ends the validation like Ctrl-C
+            rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
+                              executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar,
+                              calibrate=args.calibrate)
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
+    except KeyboardInterrupt:
+        what = "terminated (SIGTERM)" if caught else "interrupted"
+        print(f"{prog}: {what}; finished trials are kept in {out / 'trials.jsonl'}, the same command continues",
+              file=sys.stderr)
+        return 128 + caught[0] if caught else 130
     table, md = confusion(rows)
     write_atomic(out / "results.csv", lambda p: table.to_csv(p, index=False))
     write_atomic(out / "matrix.md", lambda p: p.write_text(md))

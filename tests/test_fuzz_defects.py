@@ -394,6 +394,24 @@ def test_interrupted_sweep_says_one_line(executor, sig, tmp_path):
 
 
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_interrupted_gap_validate_says_one_line(sig, tmp_path):
+    """gap-validate on a process pool, signalled (the whole process group, as a terminal does) after its first
+    trial: one line, the signal's exit code, and the finished trials kept for the same command to continue."""
+    import json
+    import signal
+
+    rows = tmp_path / "o" / "trials.jsonl"
+    code, err = _signal_when(["gap-validate", "--cases", "null", "--trials", "40", "--duration", "10", "--out", "o",
+                              "--executor", "process", "--workers", "2", "--no-progress"], tmp_path,
+                             lambda: rows.exists() and rows.read_text().strip() != "", getattr(signal, sig))
+    assert code == (130 if sig == "SIGINT" else 143), err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert "the same command continues" in err, err
+    kept = [json.loads(line) for line in rows.read_text().splitlines()]
+    assert 1 <= len(kept) < 40 and all(r["case"] == "null" for r in kept)
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
 def test_interrupted_tune_says_one_line(sig, tmp_path):
     import signal
     import sqlite3
@@ -423,13 +441,13 @@ def test_the_dask_sync_cancel_noise_is_dropped_and_nothing_else():
     dropped."""
     import logging
 
-    from finkensim.sweep.run import _drop_sync_cancel_noise
+    from finkensim.sweep.run import drop_interrupt_noise
 
     def record(message, exc):
         return logging.LogRecord("tornado.application", logging.ERROR, __file__, 1, message, (), (type(exc), exc, None))
 
-    _drop_sync_cancel_noise()
-    _drop_sync_cancel_noise()  # once only
+    drop_interrupt_noise()
+    drop_interrupt_noise()  # once only
     logger = logging.getLogger("tornado.application")
     assert len(logger.filters) >= 1
     noise = "Exception in callback functools.partial(<function sync.<locals>.cancel at 0x7f65590ee700>)"
@@ -445,9 +463,9 @@ def test_a_local_clusters_errors_are_dropped_only_after_an_interrupt():
     import logging
 
     from finkensim.sweep import executors
-    from finkensim.sweep.run import _drop_sync_cancel_noise
+    from finkensim.sweep.run import drop_interrupt_noise
 
-    _drop_sync_cancel_noise()
+    drop_interrupt_noise()
     logger = logging.getLogger("distributed.scheduler")
 
     def passes(level):

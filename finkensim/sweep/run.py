@@ -82,7 +82,7 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
     out_dir = Path(out) if out is not None else None
     dask: list = []  # [client, cluster or None] once connected
     if executor == "dask":
-        _drop_sync_cancel_noise()
+        drop_interrupt_noise()
     if executor == "dask" and scheduler:
         dask[:] = dask_client(workers, scheduler)  # an unreachable scheduler fails before out is touched
     results: Iterator[dict] = iter(())
@@ -129,12 +129,7 @@ def run_sweep(sweep: Sweep | str | Path | Mapping[str, Any], out: str | Path | N
                 if interrupt_requested():  # a Ctrl-C / SIGTERM whose KeyboardInterrupt a callback swallowed
                     raise KeyboardInterrupt
     finally:
-        # tearing a local Dask cluster down while futures are cancelled (Ctrl-C, SIGTERM) logs scheduler errors about
-        # keys it can no longer gather, and distributed's own sync helper can fail in its cancel callback (tornado logs
-        # a NameError): noise at that point (every finished run is kept), silenced for the teardown
-        with contextlib.ExitStack() as quiet:
-            for name in ("distributed", "tornado.application") if dask else ():
-                quiet.enter_context(_quiet_logger(name))
+        with quiet_dask_teardown(bool(dask)):
             close = getattr(results, "close", None)
             if close is not None:
                 close()  # shuts a process pool down, cancels pending Dask futures
@@ -176,7 +171,7 @@ class _InterruptNoise(logging.Filter):
 _CLUSTER_LOGGERS = ("distributed.scheduler", "distributed.client", "distributed.core", "distributed.nanny")
 
 
-def _drop_sync_cancel_noise() -> None:
+def drop_interrupt_noise() -> None:
     """Install :class:`_SyncCancelNoise` on ``tornado.application`` and :class:`_InterruptNoise` on the local
     cluster's loggers, once, for the rest of the process: the callbacks run on Dask's event-loop thread whenever
     the loop gets to them, during the interrupted sweep or after its teardown, so a filter bound to a block cannot
@@ -186,6 +181,18 @@ def _drop_sync_cancel_noise() -> None:
         logger = logging.getLogger(name)
         if not any(isinstance(f, kind) for f in logger.filters):
             logger.addFilter(kind())
+
+
+@contextlib.contextmanager
+def quiet_dask_teardown(dask: bool = True):
+    """Within the block (a Dask client's and cluster's teardown), distributed's and tornado's loggers pass only
+    CRITICAL records: tearing a local cluster down while futures are cancelled (Ctrl-C, SIGTERM) logs scheduler errors
+    about keys it can no longer gather, and distributed's ``sync`` helper can fail in its cancel callback — noise at
+    that point, when every finished run is kept. ``dask`` False: nothing is silenced."""
+    with contextlib.ExitStack() as quiet:
+        for name in ("distributed", "tornado.application") if dask else ():
+            quiet.enter_context(_quiet_logger(name))
+        yield
 
 
 @contextlib.contextmanager

@@ -38,16 +38,16 @@ def load_done(path: Path) -> dict:
 
 
 def _worker_init(parent_pid: int) -> None:
-    """A process-pool worker: ends with the sweep, and computes on one thread. The pool already runs one trial per
+    """A process-pool worker: ignores Ctrl-C, ends with the sweep, and computes on one thread. The pool already runs one trial per
     core; numba's and scikit-learn's own thread pools on top of it would oversubscribe the cores. Every ``prange``
     of the diagnosis is per element (no reductions), so results do not depend on the thread count."""
     import os
 
     import numba
 
-    from ...sweep.executors import die_with_parent
+    from ...sweep.executors import quiet_worker
 
-    die_with_parent(parent_pid)
+    quiet_worker(parent_pid)  # Ctrl-C is the validation's to answer (it stops the pool); end with it however it ends
     numba.set_num_threads(1)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # libraries loaded later
         os.environ[var] = "1"
@@ -98,16 +98,19 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
                 stop_pool(pool)
         return
     from ...sweep.executors import dask_client
+    from ...sweep.run import drop_interrupt_noise, quiet_dask_teardown
     from distributed import as_completed as dask_completed
 
+    drop_interrupt_noise()
     client, cluster = dask_client(workers, scheduler)
     try:
         for fut in dask_completed([client.submit(_one, j, pure=False) for j in jobs]):
             yield fut.result()
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with quiet_dask_teardown():
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration: float, conventions: str,
@@ -117,6 +120,8 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``;
     calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validation.calibrated`; keep
     its rows in their own ``out``)."""
+    from ...sweep.executors import interrupt_requested
+
     log_path = Path(out) / "trials.jsonl"
     done = load_done(log_path)
     keys = [trial_key(c, seed + t, flights, duration, conventions) for t in range(trials) for c in cases]
@@ -129,6 +134,8 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
             write_text_atomic(log_path, "".join(json.dumps(r, default=float) + "\n" for r in done.values()))
             if bar is not None:
                 bar.update(1)
+            if interrupt_requested():  # a Ctrl-C / SIGTERM whose KeyboardInterrupt a callback swallowed
+                raise KeyboardInterrupt
     finally:
         if bar is not None:
             bar.close()
