@@ -14,7 +14,7 @@ from finkensim.flightlog import FlightLog
 from finkensim.gap.validation import sweep as validate_sweep
 from finkensim.gap.validation.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
 from finkensim.gap.validation.cases import CASES, all_pairs, get_case, pair_case
-from finkensim.gap.validation.tables import confusion, exactly_withheld, pair_grid, wilson
+from finkensim.gap.validation.tables import confusion, effect_pairs, exactly_withheld, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
@@ -180,6 +180,35 @@ def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):
     assert "Wilson" in md and "| null | 3 | 100% (44%–100%) |" in md
     assert "| **all 2 cases** | 6 | 100.0% (61.0%–100.0%) |" in md  # the pooled row: 6 of 6, Wilson
     assert "| null | 3 | 100% (44%–100%) |" in validate_sweep.summarize(tmp_path)  # a run so far, from its file
+
+
+def test_effect_pairs_counts_each_effects_pairs_that_reach_the_target():
+    rows = ([{"case": "sonar_bias+latency", "correct": c} for c in [True] * 18 + [False] * 2]
+            + [{"case": "wall_bulge+latency", "correct": c} for c in [True] * 17 + [False] * 3]
+            + [{"case": "null", "correct": True}])
+    lines = effect_pairs(rows).splitlines()
+    lo, hi = wilson(17, 20)
+    assert lines[2] == f"| wall_bulge | 1 | 0 | wall_bulge+latency 17/20 ({lo:.0%}–{hi:.0%}) | 20–20 |"
+    assert lines[3].startswith("| sonar_bias | 1 | 1 | sonar_bias+latency 18/20 ")  # 18 of 20 reaches 90 %
+    assert lines[4].startswith("| latency | 2 | 1 | wall_bulge+latency 17/20 ")
+    assert effect_pairs(rows, ["imu_bias"]).splitlines()[2] == "| imu_bias | 0 | | | |"
+    assert effect_pairs([{"case": "null", "correct": True}]) == ""
+
+
+def test_parts_of_one_matrix_merge_and_disagreeing_parts_are_refused(tmp_path, capsys):
+    row = {"case": "sonar_bias+latency", "seed": 0, "significant": True, "named": "sonar_bias",
+           "effects": ["sonar_bias", "latency"], "unexplained": False, "correct": True, "location_ok": None,
+           "param_error": math.nan, "shrink_heldout": 1.0, "seconds": 3.0, "flights": 2, "duration": 30.0,
+           "convention_mode": "random", "flagged_locations": 0}
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d, rows in ((a, [row, {**row, "seed": 1}]), (b, [{**row, "seconds": 9.0}, {**row, "seed": 2}])):
+        d.mkdir()
+        (d / "trials.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert sorted(r["seed"] for r in validate_sweep.merged_rows([a, b])) == [0, 1, 2]  # seed 0 once (time aside)
+    assert "sonar_bias+latency 3/3" in validate_sweep.summarize(a, b)
+    (b / "trials.jsonl").write_text(json.dumps({**row, "correct": False}) + "\n")
+    with pytest.raises(ValueError, match=r"trial sonar_bias\+latency seed 0 differs between .*a and .*b in correct"):
+        validate_sweep.merged_rows([a, b])
 
 
 @pytest.mark.parametrize("extra,named", [(["--cases", "sonar_bias+sonar_bias"], "sonar_bias+sonar_bias"),

@@ -16,7 +16,7 @@ from typing import Callable, Iterator
 from ...atomic import write_text_atomic
 from .cases import run_case
 
-__all__ = ["trial_key", "load_done", "run_trials"]
+__all__ = ["trial_key", "load_done", "run_trials", "merged_rows", "summarize"]
 
 
 def trial_key(case: str, seed: int, flights: int, duration: float, conventions: str) -> tuple:
@@ -142,27 +142,56 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     return [done[k] for k in keys]
 
 
-def summarize(out: Path) -> str:
-    """The matrix (Markdown) of whatever trials ``out/trials.jsonl`` holds, finished or not; with pair trials also
-    their effect × effect grid (:func:`~finkensim.gap.validation.tables.pair_grid`)."""
-    from .tables import confusion, pair_grid
+def merged_rows(outs) -> list[dict]:
+    """The finished trials of several runs' ``OUT/trials.jsonl`` (e.g. one matrix run in parts, in any order), each
+    trial once. ValueError when a trial is in two files with different results (the ``seconds`` it took aside):
+    parts of one matrix must come from one diagnosis."""
+    rows: dict = {}
+    where: dict = {}
+    for out in outs:
+        for key, row in load_done(Path(out) / "trials.jsonl").items():
+            if key in rows:
+                a, b = ({k: v for k, v in r.items() if k != "seconds"} for r in (rows[key], row))
+                if json.dumps(a, sort_keys=True, default=float) != json.dumps(b, sort_keys=True, default=float):
+                    differ = sorted(k for k in a.keys() | b.keys() if json.dumps(a.get(k), default=float)
+                                    != json.dumps(b.get(k), default=float))
+                    raise ValueError(f"trial {row['case']} seed {row['seed']} differs between {where[key]} and {out} "
+                                     f"in {', '.join(differ)}: expected runs of one diagnosis")
+                continue
+            rows[key], where[key] = row, out
+    return list(rows.values())
 
-    rows = list(load_done(Path(out) / "trials.jsonl").values())
+
+def summarize(*outs: Path) -> str:
+    """The matrix (Markdown) of whatever trials the runs ``outs`` hold (``OUT/trials.jsonl``, finished or not, merged
+    by :func:`merged_rows`); with pair trials also their effect × effect grid and each effect's pairs
+    (:func:`~finkensim.gap.validation.tables.pair_grid`, :func:`~finkensim.gap.validation.tables.effect_pairs`)."""
+    from .tables import confusion, effect_pairs, pair_grid
+
+    rows = merged_rows(outs)
     if not rows:
-        raise FileNotFoundError(f"{Path(out) / 'trials.jsonl'}: no finished trials")
+        raise FileNotFoundError(f"{' '.join(str(Path(o) / 'trials.jsonl') for o in outs)}: no finished trials")
     grid = pair_grid(rows)
-    return confusion(rows)[1] + ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid if grid else "")
+    if not grid:
+        return confusion(rows)[1]
+    return (confusion(rows)[1] + "\nPairs (rows and columns: the two withheld effects):\n\n" + grid
+            + "\nEach effect with every other effect:\n\n" + effect_pairs(rows))
 
 
-if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [--figure PNG]: the matrix of a run so far
+if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [OUT ...] [--figure PNG]: a matrix so far
     import argparse
+    import sys
 
-    ap = argparse.ArgumentParser(description="The matrix of a gap-validate run (finished or not) from OUT/trials.jsonl")
-    ap.add_argument("out", nargs="?", default="out/gap-validate", help="the run's --out directory")
+    ap = argparse.ArgumentParser(description="The matrix of gap-validate runs (finished or not) from OUT/trials.jsonl; "
+                                             "several OUT directories (parts of one matrix) are merged")
+    ap.add_argument("out", nargs="*", default=["out/gap-validate"], help="the runs' --out directories")
     ap.add_argument("--figure", metavar="PNG", help="also draw the pair trials as an effect × effect grid")
     args = ap.parse_args()
-    print(summarize(Path(args.out)), end="")
+    try:
+        print(summarize(*args.out), end="")
+    except (FileNotFoundError, ValueError) as exc:
+        sys.exit(f"{ap.prog}: {exc}")
     if args.figure:
         from .plot import pair_grid_figure
 
-        print(pair_grid_figure(list(load_done(Path(args.out) / "trials.jsonl").values()), args.figure))
+        print(pair_grid_figure(merged_rows(args.out), args.figure))

@@ -8,7 +8,8 @@ import math
 
 from .cases import CASES, essential, pair_right
 
-__all__ = ["wilson", "withheld", "judged", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid"]
+__all__ = ["wilson", "withheld", "judged", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid",
+           "effect_pairs"]
 
 
 def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -190,4 +191,28 @@ def pair_grid(rows: list[dict], target: float = 0.9) -> str:
               f"{min(n for _, n in tally.values())}–{max(n for _, n in tally.values())}.",
               f"Pair trials naming exactly the two withheld effects (none missing, none extra): "
               f"{_share(*_exact_pairs(rows), '.1%')}, {_exact_pairs(rows)[0]} of {_exact_pairs(rows)[1]}."]
+    return "\n".join(lines) + "\n"
+
+
+def effect_pairs(rows: list[dict], effects: list[str] | None = None, target: float = 0.9) -> str:
+    """Per effect, its pairs with every other effect (Markdown): how many pairs were tried, how many of them have both
+    effects named (:func:`judged`) in ≥ ``target`` of their trials (18 of 20 at 0.9), the lowest pair and the trials
+    per pair — the issues' "in the pairs matrix with every other effect ≥ 18/20". ``effects``: the effects to list
+    (default: every effect of the pair trials); "" when ``rows`` hold no pair trial."""
+    known, tally = pair_tally(rows)
+    if not tally:
+        return ""
+    lines = [f"| effect | pairs | pairs with both named in ≥ {target:.0%} of trials | lowest pair (Wilson 95 % CI) | "
+             "trials per pair |", "| --- | ---: | ---: | --- | --- |"]
+    for e in effects or known:
+        mine = {p: kn for p, kn in tally.items() if e in p.split("+")}
+        if not mine:
+            lines.append(f"| {e} | 0 | | | |")
+            continue
+        met = sum(k / n >= target for k, n in mine.values())
+        worst = min(mine, key=lambda p: mine[p][0] / mine[p][1])
+        k, n = mine[worst]
+        lo, hi = wilson(k, n)
+        ns = [n for _, n in mine.values()]
+        lines.append(f"| {e} | {len(mine)} | {met} | {worst} {k}/{n} ({lo:.0%}–{hi:.0%}) | {min(ns)}–{max(ns)} |")
     return "\n".join(lines) + "\n"
