@@ -201,6 +201,11 @@ def test_calibrated_table_counts_trials_without_a_gap():
     assert "| foreign | 1 | 0 % |" in md and "| 40 % | 1/1 |" in md and "other" not in md
     tiny = calibrated_table([{"case": "null", "calibrated_significant": False, "calibrated_gap_ratio": -0.001}])
     assert "| 0 % | 0/1 |" in tiny and "-0 %" not in tiny  # a ratio within half a per cent of 0 reads 0, never -0
+    pairs = calibrated_table(rows + [{"case": c, "seed": 100, "calibrated_significant": c == "latency+imu_bias",
+                                      "calibrated_gap_ratio": 0.1} for c in ("sonar_bias+latency", "latency+imu_bias")])
+    assert "| **every pair** (2) | 2 | 50 % |" in pairs and "sonar_bias+latency |" not in pairs  # pooled in one row
+    assert pairs.rstrip().endswith("Pairs with a significant gap after calibration: latency+imu_bias (seed 100).")
+    assert "every pair" not in md and "Pairs with" not in md
 
 
 def test_a_bulge_refitted_with_the_hinge_law_is_flown_with_its_hinge_weight():

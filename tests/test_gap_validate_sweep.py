@@ -205,10 +205,12 @@ def test_parts_of_one_matrix_merge_and_disagreeing_parts_are_refused(tmp_path, c
         d.mkdir()
         (d / "trials.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     assert sorted(r["seed"] for r in validate_sweep.merged_rows([a, b])) == [0, 1, 2]  # seed 0 once (time aside)
-    assert "sonar_bias+latency 3/3" in validate_sweep.summarize(a, b)
+    assert "sonar_bias+latency 3/3" in validate_sweep.summarize(a, b) and "After calibration" not in validate_sweep.summarize(a)
     (b / "trials.jsonl").write_text(json.dumps({**row, "correct": False}) + "\n")
     with pytest.raises(ValueError, match=r"trial sonar_bias\+latency seed 0 differs between .*a and .*b in correct"):
         validate_sweep.merged_rows([a, b])
+    (a / "trials.jsonl").write_text(json.dumps({**row, "calibrated_significant": False, "calibrated_gap_ratio": 0.0}) + "\n")
+    assert "| **every pair** (1) | 1 | 100 % |" in validate_sweep.summarize(a)  # --calibrate rows: the calibration table
 
 
 @pytest.mark.parametrize("extra,named", [(["--cases", "sonar_bias+sonar_bias"], "sonar_bias+sonar_bias"),

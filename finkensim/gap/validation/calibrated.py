@@ -89,7 +89,8 @@ def run_calibrated_case(name: str, seed: int, n_flights: int = 2, duration: floa
 
 
 def calibrated_table(rows: list[dict]) -> str:
-    """Markdown: per case, trials, the share with no significant gap after calibration (Wilson 95 % interval), the
+    """Markdown: per case (the pairs pooled in one row, those left with a significant gap named below the table),
+    trials, the share with no significant gap after calibration (Wilson 95 % interval), the
     median of what is left of the first diagnosis's held-out gap (``calibrated_gap_left``, in its units; rows written
     before it existed: ``calibrated_gap_ratio``; n/a when no first gap was positive), and the share of trials whose
     calibration used the learned correction.
@@ -108,10 +109,11 @@ def calibrated_table(rows: list[dict]) -> str:
     for r in rows:
         if "calibrated_significant" in r:
             by.setdefault(r["case"], []).append(r)
+    pairs = sorted(c for c in by if "+" in c)
+    pooled = {f"**every pair** ({len(pairs)})": [r for c in pairs for r in by.pop(c)]} if pairs else {}
     lines = ["| case | trials | no significant gap after calibration | 95 % interval | median gap left | "
              "with the learned correction |", "|---|---|---|---|---|---|"]
-    for case in sorted(by):
-        rs = by[case]
+    for case, rs in [(c, by[c]) for c in sorted(by)] + list(pooled.items()):
         n = len(rs)
         k = sum(not r["calibrated_significant"] for r in rs)
         lo, hi = wilson(k, n)
@@ -122,4 +124,7 @@ def calibrated_table(rows: list[dict]) -> str:
         corr = sum(bool(r.get("calibrated_correction")) for r in rs)
         lines.append(f"| {case} | {n} | {100 * k / n:.0f} % | {100 * lo:.0f}–{100 * hi:.0f} % | "
                      f"{'n/a' if not np.isfinite(ratio) else f'{round(100 * ratio)} %'} | {corr}/{n} |")
+    left_open = sorted(f"{r['case']} (seed {r['seed']})" for rs in pooled.values() for r in rs if r["calibrated_significant"])
+    if left_open:
+        lines += ["", f"Pairs with a significant gap after calibration: {', '.join(left_open)}."]
     return "\n".join(lines) + "\n"

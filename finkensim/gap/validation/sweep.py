@@ -165,17 +165,24 @@ def merged_rows(outs) -> list[dict]:
 def summarize(*outs: Path) -> str:
     """The matrix (Markdown) of whatever trials the runs ``outs`` hold (``OUT/trials.jsonl``, finished or not, merged
     by :func:`merged_rows`); with pair trials also their effect × effect grid and each effect's pairs
-    (:func:`~finkensim.gap.validation.tables.pair_grid`, :func:`~finkensim.gap.validation.tables.effect_pairs`)."""
+    (:func:`~finkensim.gap.validation.tables.pair_grid`, :func:`~finkensim.gap.validation.tables.effect_pairs`), with
+    ``--calibrate`` rows also the calibration table (:func:`~finkensim.gap.validation.calibrated.calibrated_table`)."""
     from .tables import confusion, effect_pairs, pair_grid
 
     rows = merged_rows(outs)
     if not rows:
         raise FileNotFoundError(f"{' '.join(str(Path(o) / 'trials.jsonl') for o in outs)}: no finished trials")
+    out = confusion(rows)[1]
     grid = pair_grid(rows)
-    if not grid:
-        return confusion(rows)[1]
-    return (confusion(rows)[1] + "\nPairs (rows and columns: the two withheld effects):\n\n" + grid
-            + "\nEach effect with every other effect:\n\n" + effect_pairs(rows))
+    if grid:
+        out += ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid
+                + "\nEach effect with every other effect:\n\n" + effect_pairs(rows))
+    if any("calibrated_significant" in r for r in rows):  # gap-validate --calibrate
+        from .calibrated import calibrated_table
+
+        out += "\nAfter calibration (new flights of the same truth, diagnosed with the calibrated config):\n\n"
+        out += calibrated_table(rows)
+    return out
 
 
 if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [OUT ...] [--figure PNG]: a matrix so far
