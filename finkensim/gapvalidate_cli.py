@@ -92,7 +92,7 @@ def cmd_gap_validate(args) -> int:
         with terminate_as_interrupt() as caught:  # SIGTERM ends the validation like Ctrl-C
             rows = run_trials(cases, args.trials, args.seed, args.flights, args.duration, args.conventions, out,
                               executor=args.executor, workers=args.workers, scheduler=args.scheduler, progress=bar,
-                              calibrate=args.calibrate)
+                              calibrate=args.calibrate, note=lambda m: print(f"{prog}: note: {m}", file=sys.stderr))
     except ConfigError as exc:
         raise UsageError(prog, str(exc)) from None
     except KeyboardInterrupt:

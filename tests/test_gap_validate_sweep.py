@@ -182,6 +182,34 @@ def test_trials_resume_without_rerunning_finished_ones(tmp_path, monkeypatch):
     assert "| null | 3 | 100% (44%–100%) |" in validate_sweep.summarize(tmp_path)  # a run so far, from its file
 
 
+def test_a_run_into_trials_of_other_sources_says_so_and_the_matrix_counts_them(tmp_path, monkeypatch):
+    import finkensim.numba_cache as nc
+
+    def fake(job):
+        case, seed, flights, duration, conv = job
+        return {"case": case, "seed": seed, "significant": False, "named": None, "unexplained": False,
+                "correct": True, "location_ok": None, "param_error": math.nan, "shrink_heldout": 1.0,
+                "seconds": 0.0, "flights": flights, "duration": duration, "convention_mode": conv,
+                "flagged_locations": 0}
+
+    monkeypatch.setattr(validate_sweep, "_one", fake)
+    notes = []
+    monkeypatch.setattr(nc, "source_hash", lambda: "aaaa")
+    validate_sweep.run_trials(["null"], 1, 5, 1, 10.0, "random", tmp_path, note=notes.append)
+    validate_sweep.run_trials(["null"], 2, 5, 1, 10.0, "random", tmp_path, note=notes.append)
+    assert notes == [] and "versions of finkensim" not in validate_sweep.summarize(tmp_path)  # one source: silent
+    monkeypatch.setattr(nc, "source_hash", lambda: "bbbb")
+    validate_sweep.run_trials(["null"], 3, 5, 1, 10.0, "random", tmp_path, note=notes.append)
+    assert len(notes) == 1 and "other finkensim sources (aaaa; these are bbbb)" in notes[0], notes
+    assert [r["sources"] for r in validate_sweep.provenance(tmp_path)] == ["aaaa", "aaaa", "bbbb"]
+    assert "made by 2 versions of finkensim (sources aaaa, bbbb" in validate_sweep.summarize(tmp_path)
+    validate_sweep.run_trials(["null"], 3, 5, 1, 10.0, "random", tmp_path, note=notes.append)
+    assert len(notes) == 1 and len(validate_sweep.provenance(tmp_path)) == 3  # nothing to add: no note, no record
+    monkeypatch.setattr(nc, "source_hash", lambda: "cccc")
+    with pytest.warns(UserWarning, match=r"other finkensim sources \(aaaa, bbbb; these are cccc\)"):
+        validate_sweep.run_trials(["null"], 4, 5, 1, 10.0, "random", tmp_path)  # a library call without ``note``
+
+
 def test_effect_pairs_counts_each_effects_pairs_that_reach_the_target():
     rows = ([{"case": "sonar_bias+latency", "correct": c} for c in [True] * 18 + [False] * 2]
             + [{"case": "wall_bulge+latency", "correct": c} for c in [True] * 17 + [False] * 3]

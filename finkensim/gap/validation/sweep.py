@@ -16,7 +16,7 @@ from typing import Callable, Iterator
 from ...atomic import write_text_atomic
 from .cases import run_case
 
-__all__ = ["trial_key", "load_done", "run_trials", "merged_rows", "summarize"]
+__all__ = ["trial_key", "load_done", "run_trials", "merged_rows", "summarize", "record_provenance", "provenance"]
 
 
 def trial_key(case: str, seed: int, flights: int, duration: float, conventions: str) -> tuple:
@@ -113,19 +113,66 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
                 cluster.close()
 
 
+#: one line per run of :func:`run_trials` into an ``out`` directory: when, and which finkensim sources made its trials
+PROVENANCE = "provenance.jsonl"
+
+
+def record_provenance(out: Path) -> list[str]:
+    """Add this finkensim's sources (:func:`finkensim.numba_cache.source_hash`: every ``.py`` file of the package) and
+    version to ``out/provenance.jsonl``; return the other sources already recorded there, in order — trials made by
+    another version of the code, whose diagnosis may differ unless the change between them was bit-identical."""
+    import datetime
+
+    from ... import __version__
+    from ...numba_cache import source_hash
+
+    path = Path(out) / PROVENANCE
+    mine = source_hash()
+    seen = provenance(out)
+    line = json.dumps({"sources": mine, "finkensim": __version__,
+                       "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")})
+    write_text_atomic(path, "".join(json.dumps(r) + "\n" for r in seen) + line + "\n")
+    return list(dict.fromkeys(r["sources"] for r in seen if r.get("sources") != mine))
+
+
+def provenance(out: Path) -> list[dict]:
+    """The runs recorded in ``out/provenance.jsonl`` (none for a directory made before it existed; unreadable lines
+    skipped)."""
+    path = Path(out) / PROVENANCE
+    rows = []
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                rows.append(json.loads(line))
+            except ValueError:
+                continue
+    return [r for r in rows if isinstance(r, dict)]
+
+
 def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration: float, conventions: str,
                out: Path, executor: str = "serial", workers: int = 2, scheduler: str | None = None,
-               progress: Callable | None = None, calibrate: bool = False) -> list[dict]:
+               progress: Callable | None = None, calibrate: bool = False,
+               note: Callable[[str], None] | None = None) -> list[dict]:
     """Every (case, trial) row, running those not already in ``out/trials.jsonl``; trial-major order so an
     interrupted run has every case's first trials. progress: a tqdm-like factory ``progress(total=...)``;
     calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validation.calibrated`; keep
-    its rows in their own ``out``)."""
+    its rows in their own ``out``). A run that adds trials is recorded in ``out/provenance.jsonl``
+    (:func:`record_provenance`); when ``out`` already holds trials of other finkensim sources, ``note`` (default
+    :func:`warnings.warn`) is told so before any trial runs."""
+    import warnings
+
     from ...sweep.executors import interrupt_requested
 
     log_path = Path(out) / "trials.jsonl"
     done = load_done(log_path)
     keys = [trial_key(c, seed + t, flights, duration, conventions) for t in range(trials) for c in cases]
     todo = [k for k in keys if k not in done]
+    others = record_provenance(out) if todo else []
+    if others and done:
+        (note or (lambda m: warnings.warn(m, stacklevel=3)))(
+            f"{log_path} holds trials of other finkensim sources ({', '.join(others)}; these are "
+            f"{provenance(out)[-1]['sources']}): the trials added now come from another version of the code; the "
+            f"runs are listed in {Path(out) / PROVENANCE}")
     bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
     try:
         for row in _completed([k + (True,) for k in todo] if calibrate else todo, executor, workers, scheduler):
@@ -173,6 +220,10 @@ def summarize(*outs: Path) -> str:
     if not rows:
         raise FileNotFoundError(f"{' '.join(str(Path(o) / 'trials.jsonl') for o in outs)}: no finished trials")
     out = confusion(rows)[1]
+    sources = list(dict.fromkeys(r.get("sources") for o in outs for r in provenance(o) if r.get("sources")))
+    if len(sources) > 1:
+        out += (f"\nThese trials were made by {len(sources)} versions of finkensim (sources {', '.join(sources)}; "
+                f"{PROVENANCE}): the same diagnosis only if the changes between them were bit-identical.\n")
     grid = pair_grid(rows)
     if grid:
         out += ("\nPairs (rows and columns: the two withheld effects):\n\n" + grid
