@@ -158,7 +158,7 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     calibrate: each trial also calibrates and diagnoses new flights (:mod:`finkensim.gap.validation.calibrated`; keep
     its rows in their own ``out``). A run that adds trials is recorded in ``out/provenance.jsonl``
     (:func:`record_provenance`); when ``out`` already holds trials of other finkensim sources, ``note`` (default
-    :func:`warnings.warn`) is told so before any trial runs."""
+    ``warnings.warn``) is told so before any trial runs."""
     import warnings
 
     from ...sweep.executors import interrupt_requested
