@@ -117,10 +117,11 @@ def _completed(jobs: list[tuple], executor: str, workers: int, scheduler: str | 
 PROVENANCE = "provenance.jsonl"
 
 
-def record_provenance(out: Path) -> list[str]:
+def record_provenance(out: Path) -> tuple[str, list[str]]:
     """Add this finkensim's sources (:func:`finkensim.numba_cache.source_hash`: every ``.py`` file of the package) and
-    version to ``out/provenance.jsonl``; return the other sources already recorded there, in order — trials made by
-    another version of the code, whose diagnosis may differ unless the change between them was bit-identical."""
+    version to ``out/provenance.jsonl``; return (these sources, the other sources already recorded there, in order) —
+    the others made trials with another version of the code, whose diagnosis may differ unless the change between
+    them was bit-identical."""
     import datetime
 
     from ... import __version__
@@ -132,7 +133,7 @@ def record_provenance(out: Path) -> list[str]:
     line = json.dumps({"sources": mine, "finkensim": __version__,
                        "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")})
     write_text_atomic(path, "".join(json.dumps(r) + "\n" for r in seen) + line + "\n")
-    return list(dict.fromkeys(r["sources"] for r in seen if r.get("sources") != mine))
+    return mine, list(dict.fromkeys(r["sources"] for r in seen if r.get("sources") != mine))
 
 
 def provenance(out: Path) -> list[dict]:
@@ -167,12 +168,11 @@ def run_trials(cases: list[str], trials: int, seed: int, flights: int, duration:
     done = load_done(log_path)
     keys = [trial_key(c, seed + t, flights, duration, conventions) for t in range(trials) for c in cases]
     todo = [k for k in keys if k not in done]
-    others = record_provenance(out) if todo else []
+    mine, others = record_provenance(out) if todo else ("", [])
     if others and done:
         (note or (lambda m: warnings.warn(m, stacklevel=3)))(
-            f"{log_path} holds trials of other finkensim sources ({', '.join(others)}; these are "
-            f"{provenance(out)[-1]['sources']}): the trials added now come from another version of the code; the "
-            f"runs are listed in {Path(out) / PROVENANCE}")
+            f"{log_path} holds trials of other finkensim sources ({', '.join(others)}; these are {mine}): the trials "
+            f"added now come from another version of the code; the runs are listed in {Path(out) / PROVENANCE}")
     bar = progress(total=len(keys), initial=len(keys) - len(todo)) if progress else None
     try:
         for row in _completed([k + (True,) for k in todo] if calibrate else todo, executor, workers, scheduler):
