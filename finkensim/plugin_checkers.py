@@ -265,7 +265,7 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     sensor the effect does not name, leaves the base model as it was and gives the same model twice (pure); with a
     ``calibrate`` mapping, the config it writes flies the same model ``apply`` gives, for every named sensor; an own
     ``fit`` is callable as ``fit(objective, effect, current, values)``
-    (:data:`~finkensim.gap.attribute.objective.EffectFit`).
+    (:data:`~finkensim.gap.attribute.objective.EffectFit`), and a ``profiled`` effect has one.
 
     Parameters
     ----------
@@ -327,6 +327,9 @@ def check_effect(effect, cfg: Config | None = None) -> None:
             _fail(name, f"apply at {values} gave two different models: expected a pure function")
     if effect.fit is not None:
         _check_effect_fit(name, effect.fit)
+    elif effect.profiled:
+        _fail(name, "profiled = True without an own fit: expected a closed-form fit(objective, effect, current, "
+                    "values) that joint searches can solve at each step")
     if effect.calibrate is not None:
         values = _effect_values(effect, 0.75)
         want = effect.apply(base, values)

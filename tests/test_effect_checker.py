@@ -78,6 +78,12 @@ def test_an_own_fit_that_cannot_be_called_as_documented_is_caught(fit, message):
         check_effect(dataclasses.replace(SONAR_OFFSET, fit=fit))
 
 
+def test_a_profiled_effect_without_an_own_fit_is_caught():
+    check_effect(dataclasses.replace(SONAR_OFFSET, profiled=True))  # its own fit: profiled in joint searches
+    with pytest.raises(PluginError, match="profiled = True without an own fit"):
+        check_effect(dataclasses.replace(SONAR_OFFSET, fit=None, profiled=True))
+
+
 def test_an_effect_that_changes_a_sensor_it_does_not_name_is_caught():
     sneaky = Effect("sneaky", ("ultrasonic",), (Param("bias", 0.0, 0.3),),
                     lambda base, v: base.with_(sigma_xy=v["bias"]) if v["bias"] else base)

@@ -57,3 +57,29 @@ def test_joint_fit_never_returns_worse_than_its_start():
     start = [{"c": 1.06, "k": 0}, {"b": -0.08}]   # already the optimum
     vs, vb = joint_fit(d, [SCALE, BIAS], start, maxfev=10)
     assert _valley({"scale.c": vs["c"], "bias.b": vb["b"]}) <= _valley({"scale.c": 1.06, "bias.b": -0.08})
+
+
+def _solve_bias(diag, effect, current, vals):
+    """The bias's closed form on top of the model ``current``: the mean residual against the valley's truth."""
+    diag.solves += 1
+    c = current.get("scale.c", 1.0)
+    return {"b": sum(1.06 * d - 0.08 - c * d for d in (0.5, 1.0, 1.5, 2.0)) / 4}
+
+
+PROFILED_BIAS = Effect("bias", ("ultrasonic",), (Param("b", -0.5, 0.5),),
+                       lambda p, v: {**p, **{f"bias.{k}": x for k, x in v.items()}}, fit=_solve_bias, profiled=True)
+
+
+@pytest.mark.parametrize("order", [0, 1])
+def test_a_profiled_effect_is_solved_on_top_of_the_searched_ones_at_every_step(order):
+    # the node delays beside a range scale: the delays' own fit, redone at each trial scale, leaves a 1-D search
+    d = _Diag()
+    d.solves = 0
+    effects, start = [SCALE, PROFILED_BIAS], [{"c": 1.0, "k": 1}, {"b": 0.0}]
+    if order:
+        effects, start = effects[::-1], start[::-1]
+    out = dict(zip((e.name for e in effects), joint_fit(d, effects, start, maxfev=40)))
+    assert out["scale"]["c"] == pytest.approx(1.06, abs=0.005)
+    assert out["bias"]["b"] == pytest.approx(-0.08, abs=0.008)
+    assert out["scale"]["k"] == 1
+    assert d.solves == d.calls + 1  # one solve per objective call, and one for the values returned

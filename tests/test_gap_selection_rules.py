@@ -60,3 +60,38 @@ def test_a_gap_cut_counts_the_gap_size_not_its_sign():
     per_sensor = {"ranging": {"gap": 0.169}}
     share = _abs_share({"ranging": np.full(50, 0.051)}, {"ranging": np.full(50, 0.009)}, ["ranging"], per_sensor)
     assert share == pytest.approx(0.042 / 0.169)
+
+
+def test_a_lone_effect_is_joined_with_every_candidate_on_its_sensors():
+    # a range scale of 0.935 beside a +0.39 m bias near third copters went the wrong way alone (hopeless); a scale
+    # of 0.919 beside per-node delays ranked sixth on top of them: both are partners, on-top fits first
+    from finkensim.gap.attribute.joint import _partners
+    first = [_fit("ranging_nlos", bias=0.3), _fit("ranging_nlos_tail"), _fit("ranging_scale", factor=0.997),
+             _fit("sonar_bias", bias=0.001), _fit("ranging_bias", bias=-0.01)]
+    on_top = _fit("ranging_nlos_tail", probability=0.01)
+    sel = _selection(first, [first[0]])
+    sel.pool = [on_top, _fit("sonar_bias", bias=0.002)]
+    assert _partners(sel) == [on_top, first[2], first[4]]
+
+
+@pytest.mark.parametrize("pair_explains, lone_explains, adopted", [(False, True, False), (True, True, True),
+                                                                    (False, False, True)])
+def test_a_joint_second_never_costs_the_selection_its_explanation(monkeypatch, pair_explains, lone_explains, adopted):
+    # MURP: a range scale jointly with the node delays won held-out score by widening the predictive, and the
+    # calibration gap's shrink fell under gap.unexplained_shrink
+    from finkensim.gap.attribute import joint
+    delays, scale = _fit("ranging_node_delay", delay_0=0.2), _fit("ranging_scale", factor=1.007)
+    pair = [delays, FitResult("ranging_scale", scale.values, BASE, math.nan, score_heldout=0.28,
+                              rows_score={"ranging": np.zeros(3)}, rows_gap={"ranging": np.ones(3)})]
+    monkeypatch.setattr(joint, "_best_joint_pair", lambda *args: pair)
+    sel = _selection([delays, scale], [delays])
+    sel.pool, sel.evaluated, sel.cur_score = [], [], 0.31
+    sel.cur_scores, sel.cur_gaps = {"ranging": np.ones(3)}, {"ranging": np.zeros(3)}
+    sel.found.significant = True
+    sel.diag.say = lambda msg: None
+    sel.explains = lambda rows_score, rows_gap: pair_explains if rows_score is pair[-1].rows_score else lone_explains
+    sel.second_matters = lambda chain, n: True
+    calls = []
+    sel.adopt = lambda chain, label: calls.append(label)
+    joint.join_second(sel)
+    assert calls == (["joint second"] if adopted else [])

@@ -103,6 +103,10 @@ class Effect:
         ``informed(objective) -> names``: the parameters the diagnosis's logs can inform (a per-node delay of a node
         no reading involves cannot be); the others stay at their start values in the joint searches and get no
         interval. None = every parameter.
+    profiled : bool
+        Its own ``fit`` is a cheap closed-form solve (least squares, not a search): a joint search with other
+        effects solves it anew at each of their trial values instead of searching its parameters (a search over
+        eight per-node delays and a range scale cannot move within a joint search's budget).
     """
 
     name: str
@@ -117,6 +121,7 @@ class Effect:
     calibrate: Callable[[dict, Config], dict] | None = None
     fit: EffectFit | None = None
     informed: Callable[[FitObjective], tuple[str, ...]] | None = None
+    profiled: bool = False
 
     def free(self, objective: FitObjective) -> tuple[Param, ...]:
         """The parameters the logs of ``objective`` can inform (:attr:`informed`; default all).
