@@ -14,7 +14,7 @@ from finkensim.flightlog import FlightLog
 from finkensim.gap.validation import sweep as validate_sweep
 from finkensim.gap.validation.conventions import NO_ECHO, NO_ECHO_DRAWN, NOISE, Conventions, draw_conventions
 from finkensim.gap.validation.cases import CASES, all_pairs, get_case, pair_case
-from finkensim.gap.validation.tables import confusion, effect_pairs, exactly_withheld, pair_grid, wilson
+from finkensim.gap.validation.tables import confusion, effect_pairs, exactly_withheld, paired, pair_grid, wilson
 from tests.stats import assert_proportion_within_se, assert_std_within_se, assert_within_se
 
 
@@ -239,6 +239,23 @@ def test_parts_of_one_matrix_merge_and_disagreeing_parts_are_refused(tmp_path, c
         validate_sweep.merged_rows([a, b])
     (a / "trials.jsonl").write_text(json.dumps({**row, "calibrated_significant": False, "calibrated_gap_ratio": 0.0}) + "\n")
     assert "| **every pair** (1) | 1 | 100 % |" in validate_sweep.summarize(a)  # --calibrate rows: the calibration table
+
+
+def test_two_diagnoses_are_compared_on_the_trials_they_share():
+    row = {"case": "ranging_nlos+ranging_scale", "seed": 1, "significant": True, "unexplained": False,
+           "effects": ["ranging_nlos"], "correct": False, "seconds": 20.0, "flights": 2, "duration": 30.0,
+           "convention_mode": "random"}
+    base = [row, {**row, "seed": 2, "effects": ["ranging_nlos", "ranging_scale"], "correct": True},
+            {**row, "seed": 3}]
+    new = [{**row, "effects": ["ranging_nlos", "ranging_scale"], "correct": True, "seconds": 40.0},
+           {**base[1], "seconds": 30.0}, {**row, "seed": 4}]
+    out = paired(new, base)
+    lo, hi = wilson(1, 2)
+    assert f"| right | 1 (50.0%, {lo:.1%}–{hi:.1%}) | 2 (100.0%, " in out
+    assert "| seconds per trial (mean) | 20.0 | 35.0 |" in out
+    assert "2 trials in common; 1 changed" in out
+    assert "- ranging_nlos+ranging_scale seed 1: ✗ ranging_nlos → ✓ ranging_nlos, ranging_scale" in out
+    assert paired(new, [{**row, "duration": 60.0}]) == "no trial in common\n"
 
 
 @pytest.mark.parametrize("extra,named", [(["--cases", "sonar_bias+sonar_bias"], "sonar_bias+sonar_bias"),

@@ -236,7 +236,7 @@ def summarize(*outs: Path) -> str:
     return out
 
 
-if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [OUT ...] [--figure PNG]: a matrix so far
+if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [OUT ...] [--figure PNG] [--against BASE ...]
     import argparse
     import sys
 
@@ -244,9 +244,16 @@ if __name__ == "__main__":  # python -m finkensim.gap.validation.sweep OUT [OUT 
                                              "several OUT directories (parts of one matrix) are merged")
     ap.add_argument("out", nargs="*", default=["out/gap-validate"], help="the runs' --out directories")
     ap.add_argument("--figure", metavar="PNG", help="also draw the pair trials as an effect × effect grid")
+    ap.add_argument("--against", metavar="BASE", nargs="+",
+                    help="also compare, trial by trial, with the runs BASE of the same matrix at another diagnosis")
     args = ap.parse_args()
     try:
         print(summarize(*args.out), end="")
+        if args.against:
+            from .tables import paired
+
+            print(f"\nTrial by trial against {' '.join(args.against)}:\n")
+            print(paired(merged_rows(args.out), merged_rows(args.against)), end="")
     except (FileNotFoundError, ValueError) as exc:
         sys.exit(f"{ap.prog}: {exc}")
     if args.figure:

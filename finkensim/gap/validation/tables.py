@@ -9,7 +9,7 @@ import math
 from .cases import CASES, essential, pair_right
 
 __all__ = ["wilson", "withheld", "judged", "exactly_withheld", "confusion", "pair_tally", "pair_count", "pair_grid",
-           "effect_pairs"]
+           "effect_pairs", "paired"]
 
 
 def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -216,3 +216,53 @@ def effect_pairs(rows: list[dict], effects: list[str] | None = None, target: flo
         ns = [n for _, n in mine.values()]
         lines.append(f"| {e} | {len(mine)} | {met} | {worst} {k}/{n} ({lo:.0%}–{hi:.0%}) | {min(ns)}–{max(ns)} |")
     return "\n".join(lines) + "\n"
+
+
+def paired(rows: list[dict], base: list[dict]) -> str:
+    """The trials that ``rows`` and ``base`` (two diagnoses' runs of the same matrix) both hold, compared trial by
+    trial (Markdown): right and exactly right in each, and every trial whose named effects or judgement changed.
+    Trials are matched by case, seed and the run's settings (``flights``, ``duration``, ``convention_mode``).
+
+    Parameters
+    ----------
+    rows, base : list of dict
+        Rows of ``trials.jsonl`` (:func:`~finkensim.gap.validation.sweep.merged_rows`): the new diagnosis's and the
+        baseline's.
+
+    Returns
+    -------
+    str
+        A summary table and the changed trials; "no trial in common" when they share none.
+    """
+    def key(r):
+        return r["case"], r["seed"], r.get("flights"), r.get("duration"), r.get("convention_mode")
+
+    old = {key(r): r for r in base}
+    both = sorted((k for k in {key(r): r for r in rows} if k in old), key=lambda k: (k[0], k[1]))
+    if not both:
+        return "no trial in common\n"
+    new = {key(r): r for r in rows}
+    n = len(both)
+
+    def tally(rs, rule):
+        k = sum(rule(rs[t]) for t in both)
+        lo, hi = wilson(k, n)
+        return f"{k} ({k / n:.1%}, {lo:.1%}–{hi:.1%})"
+
+    out = ["| | baseline | this run |", "| --- | --- | --- |",
+           f"| right | {tally(old, judged)} | {tally(new, judged)} |",
+           f"| exactly the withheld effects | {tally(old, exactly_withheld)} | {tally(new, exactly_withheld)} |",
+           f"| seconds per trial (mean) | {sum(old[t]['seconds'] for t in both) / n:.1f} | "
+           f"{sum(new[t]['seconds'] for t in both) / n:.1f} |", ""]
+    changed = [t for t in both if (judged(old[t]), list(old[t].get("effects") or ()))
+               != (judged(new[t]), list(new[t].get("effects") or ()))]
+    out.append(f"{n} trials in common; {len(changed)} changed (✓ right, ✗ wrong):")
+    out.append("")
+
+    def says(r):
+        v = ", ".join(r.get("effects") or ()) or ("unexplained" if r.get("unexplained") else
+                                                   "no gap" if not r.get("significant") else "nothing")
+        return f"{'✓' if judged(r) else '✗'} {v}"
+
+    out += [f"- {t[0]} seed {t[1]}: {says(old[t])} → {says(new[t])}" for t in changed]
+    return "\n".join(out) + "\n"
