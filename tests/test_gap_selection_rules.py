@@ -72,6 +72,10 @@ def test_a_lone_effect_is_joined_with_every_candidate_on_its_sensors():
     sel = _selection(first, [first[0]])
     sel.pool = [on_top, _fit("sonar_bias", bias=0.002)]
     assert _partners(sel) == [on_top, first[2], first[4]]
+    # a lone latency (every sensor) with the gap on the sonar: partners on the sonar only
+    sel = _selection([_fit("latency"), *first[1:]], [_fit("latency")], gap_sensors=("ultrasonic",))
+    sel.pool = []
+    assert [r.name for r in _partners(sel)] == ["sonar_bias"]
 
 
 @pytest.mark.parametrize("pair_explains, lone_explains, adopted", [(False, True, False), (True, True, True),

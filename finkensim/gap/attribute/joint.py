@@ -83,14 +83,17 @@ def join_second(sel: Selection) -> None:
 
 
 def _partners(sel: Selection) -> list:
-    """Every other candidate on the lone selected effect's sensors, as the last round fitted it on top of that effect
+    """Every other candidate on the lone selected effect's sensors with a gap (all its sensors when none has one: a gap
+    found by the targeted test), as the last round fitted it on top of that effect
     (its leaders first) or, if that round left it out as hopeless (:func:`~.selection.hopeless`), as the first round
     fitted it alone. Not only the last round's leaders: the selected effect absorbs part of a second one on its
     sensor, so that fitted on top of it the second can rank anywhere (a range scale of 0.919 beside per-node delays
     ranked below five others), or fitted alone go the wrong way (a scale of 0.935 beside a +0.39 m bias near third
     copters fitted 0.997 and was left out); jointly both came out within 0.5 % of the truth."""
     a = sel.added[0].name
+    # on the sensors where its gap is (a latency acts on every sensor; its second effect is where the gap was)
     sensors = set(fx.REGISTRY[a].sensors)
+    sensors = (sensors & set(sel.found.gap_sensors)) or sensors
     on_top = [r for r in sel.pool if r.name != a]
     alone = [r for r in sel.first if r.name != a and r.name not in {o.name for o in on_top}
              and r.name not in {x.name for x in sel.added}]
