@@ -56,11 +56,7 @@ def joint_fit(diag: FitObjective, effects, values, maxfev: int = 40):
     if any(e.profiled for e in effects) and not all(e.profiled for e in effects):
         return _profiled_joint_fit(diag, effects, values, maxfev)
     chain = _Chain(effects)
-    flat = {f"{e.name}.{k}": v for e, vals in zip(effects, values) for k, v in vals.items()}
-    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.free(diag) if not q.integer]
-    floors = {f"{e.name}.{k}": v for e in effects for k, v in stated_floor(diag.flights, e.name).items()}
-    group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
-    flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}
+    flat, group = _search_space(diag, effects, values)
     sensors = sorted({s for e in effects for s in e.sensors if s in diag.tables})
     f = lambda v: diag.objective(chain, diag.base, sensors, v)  # noqa: E731
     out = nelder_mead(f, flat, group, [flat[q.name] for q in group], f(flat), maxfev=maxfev) if group else flat
@@ -72,12 +68,7 @@ def _profiled_joint_fit(diag: FitObjective, effects, values, maxfev: int):
     of the others' continuous parameters (a Nelder–Mead over those)."""
     searched = [(e, v) for e, v in zip(effects, values) if not e.profiled]
     chain = _Chain([e for e, _ in searched])
-    flat = {f"{e.name}.{k}": v for e, vals in searched for k, v in vals.items()}
-    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e, _ in searched for q in e.free(diag)
-             if not q.integer]
-    floors = {f"{e.name}.{k}": v for e, _ in searched for k, v in stated_floor(diag.flights, e.name).items()}
-    group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
-    flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}
+    flat, group = _search_space(diag, [e for e, _ in searched], [v for _, v in searched])
     sensors = sorted({s for e in effects for s in e.sensors if s in diag.tables})
 
     def solved(v):
@@ -97,6 +88,18 @@ def _profiled_joint_fit(diag: FitObjective, effects, values, maxfev: int):
     out = nelder_mead(f, flat, group, [flat[q.name] for q in group], f(flat), maxfev=maxfev) if group else flat
     own, _ = solved(out)
     return [own[e.name] if e.profiled else {q.name: out[f"{e.name}.{q.name}"] for q in e.params} for e in effects]
+
+
+def _search_space(diag: FitObjective, effects, values):
+    """The joint search's start (``effect.param`` → value, every parameter) and its continuous informed parameters
+    (named ``effect.param``), each bounded below by what the logs state (:func:`~.stated.stated_floor`; a start below
+    it is raised to it)."""
+    flat = {f"{e.name}.{k}": v for e, vals in zip(effects, values) for k, v in vals.items()}
+    group = [dataclasses.replace(q, name=f"{e.name}.{q.name}") for e in effects for q in e.free(diag) if not q.integer]
+    floors = {f"{e.name}.{k}": v for e in effects for k, v in stated_floor(diag.flights, e.name).items()}
+    group = [dataclasses.replace(q, lo=max(q.lo, floors[q.name])) if q.name in floors else q for q in group]
+    flat = {k: max(v, floors[k]) if k in floors else v for k, v in flat.items()}
+    return flat, group
 
 
 class _Fixed:
