@@ -99,3 +99,30 @@ def test_a_joint_second_never_costs_the_selection_its_explanation(monkeypatch, p
     sel.adopt = lambda chain, label: calls.append(label)
     joint.join_second(sel)
     assert calls == (["joint second"] if adopted else [])
+
+
+def test_without_a_pair_of_the_leader_every_pair_on_the_gap_sensors_is_fitted(monkeypatch):
+    # a -0.12 m ranging offset beside a 1.082 range scale cancel at the distances flown: each alone fits about
+    # nothing, and the leader (an antenna offset) pairs with neither; every pair of gap-sensor candidates is tried
+    from finkensim.gap.attribute import joint
+    first = [_fit("ranging_antenna_offset"), _fit("ranging_bias"), _fit("ranging_scale"), _fit("ranging_nlos_tail"),
+             _fit("sonar_bias")]
+    tried = []
+
+    def best_joint_pair(diag, a, others, evaluated):
+        tried.extend((a.name, b.name) for b in others)
+        score = {"ranging_bias": 0.40, "ranging_scale": 0.45}.get(a.name, 0.5)
+        return [a, FitResult(others[0].name, {}, BASE, math.nan, score_heldout=score)]
+
+    monkeypatch.setattr(joint, "_pair_second_chance", lambda *args: None)
+    monkeypatch.setattr(joint, "_best_joint_pair", best_joint_pair)
+    clears = []
+    monkeypatch.setattr(joint, "_pair_clears", lambda sel, pair, n: clears.append((pair, n)) or pair is not None)
+    sel = _selection(first, [])
+    sel.found.significant, sel.lead, sel.diag.say, sel.evaluated = True, first[0], lambda msg: None, []
+    adopted = []
+    sel.adopt = lambda chain, label: adopted.append((chain[0].name, chain[1].name, label))
+    joint.pair_lead(sel)
+    assert tried == [("ranging_bias", "ranging_scale"), ("ranging_bias", "ranging_nlos_tail"),
+                     ("ranging_scale", "ranging_nlos_tail")]
+    assert clears[-1][1] == 3 and adopted == [("ranging_bias", "ranging_scale", "joint pair of two")]

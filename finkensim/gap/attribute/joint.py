@@ -104,16 +104,41 @@ def pair_lead(sel: Selection) -> None:
     """No single effect removed a material share: the first round's leader fitted jointly with each candidate on
     its sensors (a σ × 3.8 noise beside a 0.11 m bias: neither alone removes 10 % of the gap, fitted together both
     come out within 0.2 % of the truth)."""
-    found, cfg = sel.found, sel.diag.cfg.gap
+    found = sel.found
     if not (found.significant and not sel.added and sel.lead is not None):
         return
     pair = _pair_second_chance(sel.diag, sel.lead, sel.first, sel.evaluated)
-    if pair is not None:
-        imp, _, imp_p = sel.improvement(sel.cur_scores, pair[-1].rows_score)
-        gain = max(sel.share(sel.cur_gaps, pair[-1].rows_gap), sel.share(sel.cur_scores, pair[-1].rows_score))
-        if (imp > 0 and np.isfinite(imp_p) and imp_p < cfg.alpha and gain >= cfg.accept_gain
-                and sel.second_matters(pair, len(sel.first))):
-            sel.adopt(pair, "joint lead pair")
+    if _pair_clears(sel, pair, len(sel.first)):
+        sel.adopt(pair, "joint lead pair")
+        return
+    # the leader may be noise: two effects that cancel at the distances flown leave each other's fits alone neutral
+    # (a −0.12 m ranging offset beside a 1.082 range scale: each alone fitted about nothing, the leader was the
+    # antenna offset); every pair of candidates on the gap sensors, the leader's pairs aside
+    others = [r for r in sel.first if r.name != sel.lead.name
+              and set(fx.REGISTRY[r.name].sensors) & set(found.gap_sensors)]
+    best, n = None, 0
+    if len(others) > 1:
+        sel.diag.say(f"  no pair with {sel.lead.name}: fitting every pair of {', '.join(r.name for r in others)}")
+    for i, a in enumerate(others[:-1]):
+        pair = _best_joint_pair(sel.diag, a, others[i + 1:], sel.evaluated)
+        n += len(others) - 1 - i
+        if best is None or pair[-1].score_heldout < best[-1].score_heldout:
+            best = pair
+    if _pair_clears(sel, best, n):
+        sel.adopt(best, "joint pair of two")
+
+
+def _pair_clears(sel: Selection, pair, n_candidates: int) -> bool:
+    """A joint pair, where no single effect was material, removes a material share of the gap with a significant
+    improvement, and its second effect matters (:meth:`~.selection.Selection.second_matters`, Bonferroni over
+    ``n_candidates``)."""
+    if pair is None:
+        return False
+    cfg = sel.diag.cfg.gap
+    imp, _, imp_p = sel.improvement(sel.cur_scores, pair[-1].rows_score)
+    gain = max(sel.share(sel.cur_gaps, pair[-1].rows_gap), sel.share(sel.cur_scores, pair[-1].rows_score))
+    return bool(imp > 0 and np.isfinite(imp_p) and imp_p < cfg.alpha and gain >= cfg.accept_gain
+                and sel.second_matters(pair, n_candidates))
 
 
 def _joint_refit(diag, added):
