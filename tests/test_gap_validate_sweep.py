@@ -252,7 +252,7 @@ def test_two_diagnoses_are_compared_on_the_trials_they_share():
     out = paired(new, base)
     lo, hi = wilson(1, 2)
     assert f"| right | 1 (50.0%, {lo:.1%}–{hi:.1%}) | 2 (100.0%, " in out
-    assert "| seconds per trial (mean) | 20.0 | 35.0 |" in out
+    assert "| wall seconds per trial (mean, under each run's own load) | 20.0 | 35.0 |" in out
     assert "2 trials in common; 1 changed" in out
     assert "- ranging_nlos+ranging_scale seed 1: ✗ ranging_nlos → ✓ ranging_nlos, ranging_scale" in out
     assert paired(new, [{**row, "duration": 60.0}]) == "no trial in common\n"

@@ -252,7 +252,7 @@ def paired(rows: list[dict], base: list[dict]) -> str:
     out = ["| | baseline | this run |", "| --- | --- | --- |",
            f"| right | {tally(old, judged)} | {tally(new, judged)} |",
            f"| exactly the withheld effects | {tally(old, exactly_withheld)} | {tally(new, exactly_withheld)} |",
-           f"| seconds per trial (mean) | {sum(old[t]['seconds'] for t in both) / n:.1f} | "
+           f"| wall seconds per trial (mean, under each run's own load) | {sum(old[t]['seconds'] for t in both) / n:.1f} | "
            f"{sum(new[t]['seconds'] for t in both) / n:.1f} |", ""]
     changed = [t for t in both if (judged(old[t]), list(old[t].get("effects") or ()))
                != (judged(new[t]), list(new[t].get("effects") or ()))]
