@@ -293,6 +293,9 @@ def check_effect(effect, cfg: Config | None = None) -> None:
     for prm in effect.params:
         if not (np.isfinite(prm.lo) and np.isfinite(prm.hi) and prm.lo < prm.hi):
             _fail(name, f"parameter {prm.name!r} has bounds [{prm.lo}, {prm.hi}]: expected finite lo < hi")
+        if prm.log and not prm.lo > 0:
+            _fail(name, f"parameter {prm.name!r} is searched on a geometric grid (log=True) from lo = {prm.lo}: "
+                        "expected lo > 0")
     cfg = load_scenario() if cfg is None else cfg
     base = ModelParams.from_config(cfg)
     before = _keys(base)

@@ -105,3 +105,10 @@ def test_bad_bounds_and_sensors_are_named():
         check_effect(Effect("sonarz", ("sonar",), (Param("x", 0.0, 1.0),), lambda b, v: b))
     with pytest.raises(PluginError, match="expected a finkensim.gap.attribute.effects.Effect"):
         check_effect("wall_bulge")
+
+
+def test_a_log_parameter_needs_a_positive_lower_bound_and_gets_a_geometric_grid():
+    with pytest.raises(PluginError, match=r"log=True\) from lo = 0.0: expected lo > 0"):
+        check_effect(Effect("logz", ("ranging",), (Param("x", 0.0, 1.0, log=True),), lambda b, v: b))
+    assert Param("mean", 0.02, 1.5, log=True).grid(5) == pytest.approx([0.02, 0.0589, 0.1732, 0.5097, 1.5], rel=1e-3)
+    assert Param("p", 0.0, 0.5).grid(5) == pytest.approx([0.0, 0.125, 0.25, 0.375, 0.5])

@@ -380,7 +380,7 @@ class Diagnosis:
                 cands = range(int(prm.lo), int(prm.hi) + 1)
                 scores = [f({**vals, prm.name: c}) for c in cands]
                 return {**vals, prm.name: int(list(cands)[int(np.argmin(scores))])}
-            grid = np.unique(np.concatenate([np.linspace(prm.lo, prm.hi, 9), [vals[prm.name]]]))
+            grid = np.unique(np.concatenate([prm.grid(9), [vals[prm.name]]]))
             scores = np.array([f({**vals, prm.name: g}) for g in grid])
             j = int(np.argmin(scores))
             a, b = grid[max(0, j - 1)], grid[min(grid.size - 1, j + 1)]
@@ -392,7 +392,7 @@ class Diagnosis:
                 best = grid[j]
             return {**vals, prm.name: float(best)}
         # several continuous parameters: coarse grid, then Nelder–Mead inside the bounds
-        axes = [np.linspace(q.lo, q.hi, 5) for q in group]
+        axes = [q.grid(5) for q in group]
         best_x, best_f = np.array([vals[q.name] for q in group], float), None
         best_f = f(vals)
         for pt in np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(group), -1).T:

@@ -28,6 +28,8 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
 from ...config import Config
 
 from ...sensors.sonar_model import (CROSSTALK_CONSTANT, CROSSTALK_GEOMETRIC, ERROR_NONE, ERROR_RAYLEIGH,
@@ -52,6 +54,10 @@ class Param:
         An integer parameter (a step count): fitted over every integer in [lo, hi].
     unit : str
         Unit of the parameter (``"m"``, ``"s"``, ``""`` for a factor), shown in the report.
+    log : bool
+        A positive scale whose plausible values span decades (a mean length from centimetres to a metre): the
+        generic search's coarse grid is geometric in it, so that small values are tried as densely as large ones.
+        Needs ``lo > 0``.
     """
 
     name: str
@@ -59,6 +65,11 @@ class Param:
     hi: float
     integer: bool = False
     unit: str = ""
+    log: bool = False
+
+    def grid(self, n: int) -> np.ndarray:
+        """n points from lo to hi: geometric when :attr:`log`, else evenly spaced."""
+        return np.geomspace(self.lo, self.hi, n) if self.log else np.linspace(self.lo, self.hi, n)
 
 
 @dataclass(frozen=True)

@@ -132,7 +132,7 @@ register(Effect(
     catch_all=True, fit=fit_node_delay, informed=delay_nodes, profiled=True))
 register(Effect(
     "ranging_nlos_tail", ("ranging",),
-    (Param("probability", 0.0, 0.5), Param("mean", 0.02, 1.5, unit="m")),
+    (Param("probability", 0.0, 0.5), Param("mean", 0.02, 1.5, unit="m", log=True)),
     lambda b, v: b.with_ranging(nlos_tail_probability=v["probability"], nlos_tail_mean=v["mean"]),
     doc="obstacles or people in the line of sight: with a probability, a reading is longer by an exponential "
         "length of the given mean, independent of other copters",
