@@ -32,29 +32,33 @@ def test_every_catalogued_effect_has_a_validation_case():
 
 
 # known failures at this CI size (seed 3, 12 draws, 300 samples), left for the lead (report of the ranging session):
-# ranging_nlos_tail is named in 7 of 7 full-size trials (docs/validation.md) but here the verdict names nothing;
+# ranging_nlos_tail is named at full size (docs/validation.md, singles) but here the verdict names nothing (its fit
+# with 12 draws lands at p 0.45, mean 0.054 m for the truth's 0.11, 0.27 m, also on the geometric grid of e6b9078);
 # the redesigned foreign (false first-path detection: random short readings) is unexplained in 8 of 8 trials, but
 # its correction cannot predict random outliers from the features (-0.05 here, 0.66 on average at full size)
-_KNOWN = {"ranging_nlos_tail": "CI-sized diagnosis names no effect for the NLOS tail at seed 3 (full size: 7 of 7)",
+_KNOWN = {"ranging_nlos_tail": "CI-sized diagnosis names no effect for the NLOS tail at seed 3 (named at full size)",
           "foreign": "the correction cannot predict random short readings from the features (seed 3: -0.05)"}
 
 
-def _known(names):
-    return [pytest.param(n, marks=pytest.mark.xfail(reason=_KNOWN[n], strict=False)) if n in _KNOWN else n
-            for n in names]
+def _known_failure(case, failed: bool):
+    """A known failure at this CI size is an expected failure of the one assertion it concerns; the test's other
+    assertions still hold (an xfail mark on the whole test would assert nothing when it fails)."""
+    if failed and case in _KNOWN:
+        pytest.xfail(_KNOWN[case])
 
 
-@pytest.mark.parametrize("case", _known([c.name for c in CASES.values() if c.effect is not None]))
+@pytest.mark.parametrize("case", [c.name for c in CASES.values() if c.effect is not None])
 def test_withheld_effect_is_named_first_and_shrinks_the_gap(case):
     rep, truth = _diagnose(case)
     v = rep["verdict"]
     assert v["significant_gap"], f"{case}: no significant gap found (gap {rep['gap_before']:.4f})"
+    assert all(e["shrink_heldout"] <= 1.0 + 1e-9 for e in rep["effects"])
+    _known_failure(case, v["effect"] != CASES[case].effect)
     assert v["effect"] == CASES[case].effect, f"{case}: named {v['effect']}; ranking {[e['name'] for e in rep['effects']]}"
     assert 0.6 <= v["shrink_heldout"] <= 1.0, f"{case}: held-out shrink {v['shrink_heldout']:.2f}"
-    assert all(e["shrink_heldout"] <= 1.0 + 1e-9 for e in rep["effects"])
 
 
-@pytest.mark.parametrize("case", _known(["foreign", "foreign_multipath"]))
+@pytest.mark.parametrize("case", ["foreign", "foreign_multipath"])
 def test_foreign_effect_is_unexplained_located_and_corrected(case):
     rep, _ = _diagnose(case)
     assert rep["verdict"]["significant_gap"] and rep["verdict"]["unexplained"], rep["verdict"]
@@ -63,8 +67,9 @@ def test_foreign_effect_is_unexplained_located_and_corrected(case):
     c = rep.correction  # and a data-driven correction removes at least half of it
     assert c is not None and rep.to_spec()["correction"] == c
     assert c["sensor"] == CASES[case].sensor and "model_median" in c["features"]
-    assert c["shrink_heldout"] >= 0.5, c
     assert rep.details.correction.partial_dependence[c["sensor"]]  # drawn in correction.png
+    _known_failure(case, c["shrink_heldout"] < 0.5)
+    assert c["shrink_heldout"] >= 0.5, c
 
 
 # the second: a weak effect beside a dominant one (geometric cross-talk heard at every mutual view), which removes
