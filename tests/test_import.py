@@ -264,6 +264,9 @@ def simulated():
 
 
 TRUE_OFFSET = 0.3
+# the diagnosis at CI size (as tests/test_gap.py's): a clock offset one sonar sample off is a strong latency, named
+# with 12 draws; the round trip without a gap keeps the full size (its power is what checks the import)
+CI_GAP = {"gap.draws": 12, "gap.max_samples_per_flight": 300, "gap.fit_max_readings": 5000, "gap.n_boot": 200}
 
 
 def test_round_trip_csv_cli_auto_offset_and_no_gap(simulated, tmp_path):
@@ -301,7 +304,7 @@ def test_round_trip_with_a_late_offset_names_latency(simulated):
     wrong = build_flight(rec_, log.arena, sonar_yaw=log.ultrasonic_yaw, sonar_offset=log.ultrasonic_offset,
                          copter_radius=log.meta["copter_radius"], altitude=log.meta["altitude"],
                          clock_offset=TRUE_OFFSET + 0.05)  # one sonar sample too late
-    verdict = fs.diagnose([wrong], ["wrong offset"], cfg).to_spec()["verdict"]
+    verdict = fs.diagnose([wrong], ["wrong offset"], cfg.replace(CI_GAP)).to_spec()["verdict"]
     assert verdict["significant_gap"] and verdict["effect"] == "latency", verdict
 
 
@@ -315,7 +318,7 @@ def test_round_trip_with_an_early_offset_names_a_negative_latency(simulated):
     wrong = build_flight(rec_, log.arena, sonar_yaw=log.ultrasonic_yaw, sonar_offset=log.ultrasonic_offset,
                          copter_radius=log.meta["copter_radius"], altitude=log.meta["altitude"],
                          clock_offset=TRUE_OFFSET - 0.05)
-    rep = fs.diagnose([wrong], ["early offset"], cfg).to_spec()
+    rep = fs.diagnose([wrong], ["early offset"], cfg.replace(CI_GAP)).to_spec()
     assert rep["verdict"]["significant_gap"] and rep["verdict"]["effect"] == "latency", rep["verdict"]
     lat = next(e for e in rep["effects"] if e["name"] == "latency")["params"]
     assert -0.06 <= lat["ultrasonic"] <= -0.04, lat
