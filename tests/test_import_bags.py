@@ -214,10 +214,16 @@ def _cli(log, d, source_args, out, offset="0.3"):
     return load(out)
 
 
+@pytest.fixture(scope="module")
+def from_csv(exported):
+    """The exported flight imported from its CSV files (once: every format is compared with it)."""
+    _, log, _, d = exported
+    return _cli(log, d, ["--tracking", str(d / "track.csv"), "--readings", str(d / "read.csv")], d / "csv.npz")
+
+
 @pytest.mark.parametrize("kind", BAG_KINDS)
-def test_every_format_imports_to_the_csv_flight(exported, kind):
+def test_every_format_imports_to_the_csv_flight(exported, from_csv, kind):
     _, log, rec, d = exported
-    from_csv = _cli(log, d, ["--tracking", str(d / "track.csv"), "--readings", str(d / "read.csv")], d / "csv.npz")
     bag = d / FILE[kind]
     if not bag.exists():
         (d / f"{kind}.toml").write_text(write_bag(rec, bag, kind))
